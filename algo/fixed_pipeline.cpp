@@ -1,0 +1,141 @@
+// The fixed-point pipeline: the device's path.
+//
+// Working state per pixel (16 bytes for a two-set scan):
+//   uint32 C, S   the live set's sums (reused by the second set)
+//   uint32 A      the texture sum of both sets; its LSB is the saturation flag
+//   uint16 φ1     the first set's binary phase, once that set is complete
+//   uint16 B1     the first set's modulation code
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <optional>
+#include <vector>
+
+#include "algo/fixed_kernels.hpp"
+#include "algo/fixed_weights.hpp"
+#include "algo/phase_pipeline.hpp"
+
+namespace cylscan::algo {
+namespace {
+
+int index(FringeSet set) {
+  return set == FringeSet::High ? 0 : 1;
+}
+
+class FixedPipeline final : public PhasePipeline {
+ public:
+  explicit FixedPipeline(const PipelineSetup& setup)
+      : setup_(setup),
+        isa_(resolveKernelIsa(setup.options.kernel_isa)),
+        pixels_(setup.pixels()),
+        sum_c_(pixels_),
+        sum_s_(pixels_),
+        sum_a_(pixels_),
+        first_phase_(pixels_),
+        first_modulation_(pixels_) {
+    const int max_pixel = setup.maxPixel();
+    const ShiftWeights* sets[] = {&setup.high, &setup.low};
+    const std::int64_t a_scale = FixedSetWeights::sharedTextureScale(sets, max_pixel);
+    // Modulation code: 32768 codes per full scale (1/128 count at 8 bits, 2 counts at 16).
+    const double codes_per_count = 32768.0 / (max_pixel + 1);
+    for (int i = 0; i < 2; ++i) {
+      weights_[i] = FixedSetWeights::quantize(*sets[i], max_pixel, a_scale);
+      code_per_sum_[i] = static_cast<float>(codes_per_count / weights_[i].cs_scale);
+    }
+    const PhaseOptions& o = setup.options;
+    combine_.unwrap = setup.unwrapper.fixedParams();
+    combine_.fusion = setup.fusion.fixedParams();
+    combine_.residual_bound = setup.unwrapper.fixedResidualBound(o.max_order_error_rad);
+    combine_.min_modulation = static_cast<std::uint32_t>(
+        std::min(65535.0, std::ceil(o.min_modulation * codes_per_count)));
+    combine_.radians_per_unit = static_cast<float>(2 * std::numbers::pi / 65536.0);
+    combine_.counts_per_code = static_cast<float>(1.0 / codes_per_count);
+    combine_.counts_per_texture = static_cast<float>(1.0 / (2.0 * static_cast<double>(a_scale)));
+    fold_limits_.saturation = static_cast<std::uint32_t>(o.saturation_level);
+    fold_limits_.max_pixel = static_cast<std::uint32_t>(max_pixel);
+  }
+
+  void beginSet(FringeSet set) override {
+    if (!first_) {
+      first_ = set;
+      mode_ = FoldMode::kStartScan;
+      return;
+    }
+    second_ = set;
+    // The first set is complete: keep its phase and modulation; the next fold
+    // overwrites its sums.
+    phaseKernel(isa_, sum_c_.data(), sum_s_.data(), pixels_, code_per_sum_[index(*first_)],
+                first_phase_.data(), first_modulation_.data());
+    mode_ = FoldMode::kStartSet;
+  }
+
+  void fold(FringeSet set, int k, const cv::Mat& frame) override {
+    const FixedSetWeights& w = weights_[index(set)];
+    FoldWeights fw = fold_limits_;
+    fw.c = w.c[static_cast<std::size_t>(k)];
+    fw.s = w.s[static_cast<std::size_t>(k)];
+    fw.a = w.a[static_cast<std::size_t>(k)];
+    const int rows = frame.isContinuous() ? 1 : frame.rows;
+    const auto row_pixels = static_cast<std::size_t>(frame.isContinuous() ? pixels_ : frame.cols);
+    for (int r = 0; r < rows; ++r) {
+      const std::size_t offset = static_cast<std::size_t>(r) * row_pixels;
+      if (frame.depth() == CV_8U) {
+        foldKernel(isa_, mode_, frame.ptr<std::uint8_t>(r), row_pixels, fw, sum_c_.data() + offset,
+                   sum_s_.data() + offset, sum_a_.data() + offset);
+      } else {
+        foldKernel(isa_, mode_, frame.ptr<std::uint16_t>(r), row_pixels, fw, sum_c_.data() + offset,
+                   sum_s_.data() + offset, sum_a_.data() + offset);
+      }
+    }
+    mode_ = FoldMode::kAccumulate;
+  }
+
+  void finalize(PhaseMaps& maps) const override {
+    preparePhaseMaps(maps, setup_.size);
+    CombineParams p = combine_;
+    p.second_is_high = *second_ == FringeSet::High;
+    p.second_code_per_sum = code_per_sum_[index(*second_)];
+    const CombineOutputs out{
+        maps.wrapped_high.ptr<float>(),    maps.wrapped_low.ptr<float>(),
+        maps.modulation_high.ptr<float>(), maps.modulation_low.ptr<float>(),
+        maps.texture.ptr<float>(),         maps.absolute.ptr<float>(),
+        maps.fused.ptr<float>(),           maps.fringe_order.ptr<std::int16_t>(),
+        maps.invalid.ptr<std::uint8_t>()};
+    const std::size_t valid =
+        combineKernel(isa_, p, pixels_, sum_c_.data(), sum_s_.data(), sum_a_.data(),
+                      first_phase_.data(), first_modulation_.data(), out);
+    maps.valid_fraction = static_cast<double>(valid) / static_cast<double>(pixels_);
+  }
+
+  void reset() override {
+    // Nothing to clear: the first fold of the scan overwrites all sums.
+    first_.reset();
+    second_.reset();
+  }
+
+  std::size_t workingStateBytes() const override {
+    return pixels_ * (sizeof(std::uint32_t) * 3 + sizeof(BinaryAngle) + sizeof(std::uint16_t));
+  }
+
+ private:
+  const PipelineSetup& setup_;
+  KernelIsa isa_;
+  std::size_t pixels_;
+  FixedSetWeights weights_[2];
+  float code_per_sum_[2] = {};
+  FoldWeights fold_limits_;
+  CombineParams combine_;
+  std::vector<std::uint32_t> sum_c_, sum_s_, sum_a_;
+  std::vector<BinaryAngle> first_phase_;
+  std::vector<std::uint16_t> first_modulation_;
+  std::optional<FringeSet> first_, second_;
+  FoldMode mode_ = FoldMode::kStartScan;
+};
+
+}  // namespace
+
+std::unique_ptr<PhasePipeline> makeFixedPipeline(const PipelineSetup& setup) {
+  return std::make_unique<FixedPipeline>(setup);
+}
+
+}  // namespace cylscan::algo

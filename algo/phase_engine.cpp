@@ -1,0 +1,221 @@
+#include "algo/phase_engine.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <utility>
+
+#include "algo/phase_pipeline.hpp"
+
+namespace cylscan::algo {
+namespace {
+
+int index(FringeSet set) {
+  return set == FringeSet::High ? 0 : 1;
+}
+
+PhaseOptions resolve(PhaseOptions o) {
+  if (o.bit_depth < 8 || o.bit_depth > 16) {
+    throw std::invalid_argument("PhaseOptions::bit_depth is " + std::to_string(o.bit_depth) +
+                                "; it must be 8..16");
+  }
+  const int max_pixel = (1 << o.bit_depth) - 1;
+  if (o.saturation_level == -1) o.saturation_level = max_pixel;
+  if (o.saturation_level < 1 || o.saturation_level > max_pixel) {
+    throw std::invalid_argument("PhaseOptions::saturation_level is " +
+                                std::to_string(o.saturation_level) + "; it must be -1 or 1.." +
+                                std::to_string(max_pixel) + " for " + std::to_string(o.bit_depth) +
+                                "-bit frames");
+  }
+  if (o.min_modulation == -1) o.min_modulation = 0.02 * max_pixel;
+  if (!std::isfinite(o.min_modulation) || o.min_modulation < 0) {
+    std::ostringstream msg;
+    msg << "PhaseOptions::min_modulation is " << o.min_modulation << "; it must be -1 or >= 0";
+    throw std::invalid_argument(msg.str());
+  }
+  if (o.max_order_error_rad == -1) o.max_order_error_rad = std::numbers::pi / 2;
+  if (!(o.max_order_error_rad > 0 && o.max_order_error_rad <= std::numbers::pi)) {
+    std::ostringstream msg;
+    msg << "PhaseOptions::max_order_error_rad is " << o.max_order_error_rad
+        << "; it must be -1 or in (0, π]";
+    throw std::invalid_argument(msg.str());
+  }
+  return o;
+}
+
+cv::Size checkedSize(cv::Size size) {
+  if (size.width <= 0 || size.height <= 0) {
+    throw std::invalid_argument("PhaseEngine: image size " + std::to_string(size.width) + "x" +
+                                std::to_string(size.height) + " is empty");
+  }
+  return size;
+}
+
+std::string where(FringeSet set, int k) {
+  return "fold(" + std::string(fringeSetName(set)) + ", k=" + std::to_string(k) + "): ";
+}
+
+}  // namespace
+
+PipelineSetup::PipelineSetup(cv::Size size_, const PhaseOptions& options_,
+                             const FringeSetGeometry& high_, const FringeSetGeometry& low_)
+    : size(checkedSize(size_)),
+      options(resolve(options_)),
+      high(high_, "high"),
+      low(low_, "low"),
+      unwrapper(high_.period_deg, low_.period_deg),
+      fusion(unwrapper.periodHighDeg(), unwrapper.periodLowDeg(), high.noiseGain(), low.noiseGain(),
+             unwrapper.ratioHigh()) {}
+
+// Bits the kernels use for the flags.
+static_assert(kLowModulation == 1 && kSaturated == 2 && kOrderInconsistent == 4);
+
+struct PhaseEngine::Impl {
+  Impl(cv::Size size, const FringeSetGeometry& high, const FringeSetGeometry& low,
+       const PhaseOptions& options)
+      : setup(size, options, high, low),
+        pipeline(setup.options.fixed_point ? makeFixedPipeline(setup)
+                                           : makeReferencePipeline(setup)) {
+    reset();
+  }
+
+  void reset() {
+    for (int i = 0; i < 2; ++i) {
+      const std::size_t n = setup.weights(i == 0 ? FringeSet::High : FringeSet::Low).frameCount();
+      folded[i].assign(n, false);
+      count[i] = 0;
+    }
+    active.reset();
+    pipeline->reset();
+  }
+
+  bool complete(FringeSet set) const {
+    return count[index(set)] == static_cast<int>(folded[index(set)].size());
+  }
+
+  PipelineSetup setup;
+  std::unique_ptr<PhasePipeline> pipeline;
+  std::vector<bool> folded[2];
+  int count[2] = {0, 0};
+  std::optional<FringeSet> active;  // started and not complete
+};
+
+// The by-value geometry is the public signature.
+// NOLINTNEXTLINE(performance-unnecessary-value-param)
+PhaseEngine::PhaseEngine(cv::Size size, FringeSetGeometry high, FringeSetGeometry low,
+                         PhaseOptions options)
+    : impl_(std::make_unique<Impl>(size, high, low, options)) {}
+
+PhaseEngine::~PhaseEngine() = default;
+PhaseEngine::PhaseEngine(PhaseEngine&&) noexcept = default;
+PhaseEngine& PhaseEngine::operator=(PhaseEngine&&) noexcept = default;
+
+void PhaseEngine::fold(FringeSet set, int k, const cv::Mat& frame) {
+  Impl& im = *impl_;
+  const int n = static_cast<int>(im.folded[index(set)].size());
+  if (k < 0 || k >= n) {
+    throw std::out_of_range(where(set, k) + "the " + std::string(fringeSetName(set)) + " set has " +
+                            std::to_string(n) + " frames (k = 0.." + std::to_string(n - 1) + ")");
+  }
+  if (frame.empty()) throw std::invalid_argument(where(set, k) + "the frame is empty");
+  if (frame.type() != CV_8UC1 && frame.type() != CV_16UC1) {
+    throw std::invalid_argument(where(set, k) + "the frame is " + cv::typeToString(frame.type()) +
+                                "; expected single-channel CV_8UC1 or CV_16UC1");
+  }
+  if (frame.size() != im.setup.size) {
+    throw std::invalid_argument(where(set, k) + "the frame is " + std::to_string(frame.cols) + "x" +
+                                std::to_string(frame.rows) + "; the engine expects " +
+                                std::to_string(im.setup.size.width) + "x" +
+                                std::to_string(im.setup.size.height));
+  }
+  const int bits = im.setup.options.bit_depth;
+  if (frame.type() == CV_8UC1 && bits != 8) {
+    throw std::invalid_argument(where(set, k) +
+                                "the frame is 8-bit but PhaseOptions::bit_depth is " +
+                                std::to_string(bits));
+  }
+  if (frame.type() == CV_16UC1 && bits == 8) {
+    throw std::invalid_argument(where(set, k) +
+                                "the frame is 16-bit but PhaseOptions::bit_depth is 8");
+  }
+  if (im.folded[index(set)][static_cast<std::size_t>(k)]) {
+    throw std::logic_error(where(set, k) + "frame " + std::to_string(k) + " of the " +
+                           std::string(fringeSetName(set)) + " set was already folded");
+  }
+  if (im.active && *im.active != set) {
+    const FringeSet a = *im.active;
+    throw std::logic_error(where(set, k) + "the " + std::string(fringeSetName(a)) + " set has " +
+                           std::to_string(im.count[index(a)]) + " of " +
+                           std::to_string(im.folded[index(a)].size()) +
+                           " frames folded; fold all frames of one set before the other");
+  }
+  if (!im.active) {
+    im.pipeline->beginSet(set);
+    im.active = set;
+  }
+  im.pipeline->fold(set, k, frame);
+  im.folded[index(set)][static_cast<std::size_t>(k)] = true;
+  ++im.count[index(set)];
+  if (im.complete(set)) im.active.reset();
+}
+
+PhaseMaps PhaseEngine::finalize() {
+  PhaseMaps maps;
+  finalize(maps);
+  return maps;
+}
+
+void PhaseEngine::finalize(PhaseMaps& maps) {
+  const Impl& im = *impl_;
+  if (!im.complete(FringeSet::High) || !im.complete(FringeSet::Low)) {
+    throw std::logic_error("finalize(): frames are missing: high " + std::to_string(im.count[0]) +
+                           " of " + std::to_string(im.folded[0].size()) + ", low " +
+                           std::to_string(im.count[1]) + " of " +
+                           std::to_string(im.folded[1].size()) + " folded");
+  }
+  im.pipeline->finalize(maps);
+}
+
+void PhaseEngine::reset() {
+  impl_->reset();
+}
+
+std::size_t PhaseEngine::workingStateBytes() const {
+  return impl_->pipeline->workingStateBytes();
+}
+cv::Size PhaseEngine::size() const {
+  return impl_->setup.size;
+}
+int PhaseEngine::frameCount(FringeSet set) const {
+  return static_cast<int>(impl_->setup.weights(set).frameCount());
+}
+double PhaseEngine::conditionNumber(FringeSet set) const {
+  return impl_->setup.weights(set).conditionNumber();
+}
+double PhaseEngine::noiseGain(FringeSet set) const {
+  return impl_->setup.weights(set).noiseGain();
+}
+const PhaseOptions& PhaseEngine::options() const {
+  return impl_->setup.options;
+}
+
+void preparePhaseMaps(PhaseMaps& maps, cv::Size size) {
+  const auto prepare = [&](cv::Mat& m, int type) {
+    if (!m.isContinuous() || m.size() != size || m.type() != type) m.release();
+    m.create(size, type);
+  };
+  prepare(maps.wrapped_high, CV_32FC1);
+  prepare(maps.wrapped_low, CV_32FC1);
+  prepare(maps.modulation_high, CV_32FC1);
+  prepare(maps.modulation_low, CV_32FC1);
+  prepare(maps.texture, CV_32FC1);
+  prepare(maps.fringe_order, CV_16SC1);
+  prepare(maps.absolute, CV_32FC1);
+  prepare(maps.fused, CV_32FC1);
+  prepare(maps.invalid, CV_8UC1);
+  maps.valid_fraction = 0;
+}
+
+}  // namespace cylscan::algo

@@ -1,0 +1,100 @@
+// The phase engine: N-step least-squares phase of two fringe sets, two-wavelength
+// temporal unwrapping and dual-set fusion (spec §1; paper Eqs. 4, 6-8).
+//
+// Frames are folded one at a time into a small per-pixel state; finalize() turns it
+// into phase maps. The default fixed-point path is the one the device runs: integer
+// sums, binary angles, an integer atan2 and integer unwrapping, the same bits on any
+// CPU, 16 bytes of working state per pixel. The double-precision reference path
+// (fixed_point = false) is for tests and comparisons.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <stdexcept>
+#include <vector>
+
+#include "algo/fringe_set.hpp"
+#include "algo/kernel_isa.hpp"
+#include "algo/shift_weights.hpp"  // ShiftSolveError
+
+namespace cylscan::algo {
+
+struct PhaseOptions {
+  int bit_depth = 8;          // significant bits of the frames: 8..16
+  int saturation_level = -1;  // counts; -1 means 2^bit_depth - 1
+  // Counts of B; -1 means 2 % of full scale (5.1 counts at 8 bits): below it the
+  // phase noise σI·sqrt(2/N)/B of a dark or shadowed pixel is too large to trust.
+  double min_modulation = -1;
+  // Bound on |R·φeq − φh − 2πK|; -1 means π/2. A residual of r means the nearest
+  // other order would need an error of 2π − |r|: at |r| <= π/2 that is >= 3 times
+  // larger than the observed one, beyond it the order is no longer clear.
+  double max_order_error_rad = -1;
+  bool fixed_point = true;  // false: the double reference path
+  // Which build of the fixed-point kernels runs (same bits either way).
+  KernelIsa kernel_isa = KernelIsa::kAuto;
+};
+
+enum InvalidReason : std::uint8_t {
+  kValid = 0,
+  kLowModulation = 1,
+  kSaturated = 2,
+  kOrderInconsistent = 4
+};
+
+struct PhaseMaps {
+  cv::Mat wrapped_high, wrapped_low;        // CV_32FC1 radians in [0, 2π)
+  cv::Mat modulation_high, modulation_low;  // CV_32FC1, B in counts
+  cv::Mat texture;                          // CV_32FC1, A in counts (mean of both sets)
+  // CV_16SC1, K of the high set; computed at every pixel, to be trusted where invalid == 0.
+  cv::Mat fringe_order;
+  cv::Mat absolute;  // CV_32FC1, Φ = φ_high + 2πK, NaN where invalid
+  cv::Mat fused;     // CV_32FC1, fused Φ (same scale as Φ_high), NaN where invalid
+  cv::Mat invalid;   // CV_8UC1, InvalidReason bits, 0 = valid
+  double valid_fraction = 0;
+};
+
+class PhaseEngine {
+ public:
+  // Throws ShiftSolveError (names the set) for singular shifts, std::invalid_argument for
+  // bad options/periods.
+  PhaseEngine(cv::Size size, FringeSetGeometry high, FringeSetGeometry low,
+              PhaseOptions options = {});
+  ~PhaseEngine();
+  PhaseEngine(PhaseEngine&&) noexcept;
+  PhaseEngine& operator=(PhaseEngine&&) noexcept;
+  PhaseEngine(const PhaseEngine&) = delete;
+  PhaseEngine& operator=(const PhaseEngine&) = delete;
+
+  // Frames of one set must all be folded before the other set's first frame (either set
+  // may come first). k is the frame index into that set's stage_deg. Each frame folded
+  // exactly once (std::logic_error otherwise; std::out_of_range for a bad k). CV_8UC1
+  // (bit_depth 8) or CV_16UC1 (bit_depth 9..16) of `size`; anything else throws
+  // std::invalid_argument saying what is wrong. Counts above 2^bit_depth - 1 are clamped
+  // and flagged saturated.
+  void fold(FringeSet set, int k, const cv::Mat& frame);
+
+  PhaseMaps finalize();  // throws std::logic_error if frames are missing
+  // The same into existing maps, reusing their memory when size and type fit.
+  // finalize() does not consume the state: it may be called again.
+  void finalize(PhaseMaps& maps);
+
+  // Forget all folded frames and start a new scan with the same geometry.
+  void reset();
+
+  std::size_t workingStateBytes() const;  // per-pixel working state actually held, in bytes,
+                                          // times pixels
+
+  cv::Size size() const;
+  int frameCount(FringeSet set) const;
+  double conditionNumber(FringeSet set) const;  // of the set's normal matrix
+  double noiseGain(FringeSet set) const;        // var(φ) = gain·σ²/B²
+  const PhaseOptions& options() const;          // with every default resolved
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace cylscan::algo

@@ -1,0 +1,52 @@
+// Internal: the two implementations behind PhaseEngine (fixed point and reference).
+// PhaseEngine checks arguments and the order of folds; pipelines only compute.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <opencv2/core.hpp>
+
+#include "algo/dual_set_fusion.hpp"
+#include "algo/phase_engine.hpp"
+#include "algo/shift_weights.hpp"
+#include "algo/temporal_unwrapping.hpp"
+
+namespace cylscan::algo {
+
+// Everything the pipelines need, with every option resolved.
+struct PipelineSetup {
+  // Validates everything; throws as PhaseEngine's constructor documents.
+  PipelineSetup(cv::Size size, const PhaseOptions& options, const FringeSetGeometry& high,
+                const FringeSetGeometry& low);
+
+  cv::Size size;
+  PhaseOptions options;
+  ShiftWeights high, low;
+  TwoWavelengthUnwrapper unwrapper;
+  DualSetFusion fusion;
+
+  int maxPixel() const { return (1 << options.bit_depth) - 1; }
+  std::size_t pixels() const { return static_cast<std::size_t>(size.area()); }
+  const ShiftWeights& weights(FringeSet set) const { return set == FringeSet::High ? high : low; }
+};
+
+class PhasePipeline {
+ public:
+  virtual ~PhasePipeline() = default;
+  // Called once per set, before its first frame; the second call ends the first set.
+  virtual void beginSet(FringeSet set) = 0;
+  // frame: the checked CV_8UC1 / CV_16UC1 of the setup's size.
+  virtual void fold(FringeSet set, int k, const cv::Mat& frame) = 0;
+  // Both sets complete.
+  virtual void finalize(PhaseMaps& maps) const = 0;
+  virtual void reset() = 0;
+  virtual std::size_t workingStateBytes() const = 0;
+};
+
+std::unique_ptr<PhasePipeline> makeFixedPipeline(const PipelineSetup& setup);
+std::unique_ptr<PhasePipeline> makeReferencePipeline(const PipelineSetup& setup);
+
+// Allocates (or reuses, when size and type fit and the data is continuous) all maps.
+void preparePhaseMaps(PhaseMaps& maps, cv::Size size);
+
+}  // namespace cylscan::algo

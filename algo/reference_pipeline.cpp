@@ -1,0 +1,126 @@
+// The double-precision reference pipeline: double sums, the same least-squares
+// weights in double, std::atan2, unwrapping in radians. For tests and comparisons.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <optional>
+#include <vector>
+
+#include "algo/phase_pipeline.hpp"
+
+namespace cylscan::algo {
+namespace {
+
+constexpr double kTwoPi = 2 * std::numbers::pi;
+
+int index(FringeSet set) {
+  return set == FringeSet::High ? 0 : 1;
+}
+
+// φ in [0, 2π) as a float that is still below 2π.
+float wrappedFloat(double phi) {
+  constexpr float kBelowTwoPi = 6.2831850f;  // largest float < 2π
+  auto f = static_cast<float>(phi);
+  return f > kBelowTwoPi ? 0.0f : f;
+}
+
+double wrappedPhase(double s, double c) {
+  double phi = std::atan2(s, c);
+  if (phi < 0) phi += kTwoPi;
+  return phi >= kTwoPi ? 0.0 : phi;
+}
+
+class ReferencePipeline final : public PhasePipeline {
+ public:
+  explicit ReferencePipeline(const PipelineSetup& setup)
+      : setup_(setup), pixels_(setup.pixels()), saturated_(pixels_) {
+    for (int i = 0; i < 2; ++i) {
+      sum_c_[i].assign(pixels_, 0.0);
+      sum_s_[i].assign(pixels_, 0.0);
+      sum_a_[i].assign(pixels_, 0.0);
+    }
+  }
+
+  void beginSet(FringeSet) override {}
+
+  void fold(FringeSet set, int k, const cv::Mat& frame) override {
+    const FrameWeights w = setup_.weights(set).frame(static_cast<std::size_t>(k));
+    const int i = index(set);
+    const auto saturation = static_cast<double>(setup_.options.saturation_level);
+    const auto max_pixel = static_cast<double>(setup_.maxPixel());
+    const auto cols = static_cast<std::size_t>(frame.cols);
+    for (int r = 0; r < frame.rows; ++r) {
+      for (std::size_t x = 0; x < cols; ++x) {
+        const double raw =
+            frame.depth() == CV_8U ? frame.ptr<std::uint8_t>(r)[x] : frame.ptr<std::uint16_t>(r)[x];
+        const std::size_t p = static_cast<std::size_t>(r) * cols + x;
+        if (raw >= saturation) saturated_[p] = 1;
+        const double v = std::min(raw, max_pixel);
+        sum_c_[i][p] += w.c * v;
+        sum_s_[i][p] += w.s * v;
+        sum_a_[i][p] += w.a * v;
+      }
+    }
+  }
+
+  void finalize(PhaseMaps& maps) const override {
+    preparePhaseMaps(maps, setup_.size);
+    const PhaseOptions& o = setup_.options;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::size_t valid = 0;
+    for (std::size_t p = 0; p < pixels_; ++p) {
+      const double phi_h = wrappedPhase(sum_s_[0][p], sum_c_[0][p]);
+      const double phi_l = wrappedPhase(sum_s_[1][p], sum_c_[1][p]);
+      const double b_h = std::hypot(sum_c_[0][p], sum_s_[0][p]);
+      const double b_l = std::hypot(sum_c_[1][p], sum_s_[1][p]);
+      const ReferenceOrders orders = setup_.unwrapper.unwrap(phi_h, phi_l);
+      std::uint8_t bad = 0;
+      if (b_h < o.min_modulation || b_l < o.min_modulation) bad |= kLowModulation;
+      if (saturated_[p] != 0) bad |= kSaturated;
+      if (std::abs(orders.residual_rad) > o.max_order_error_rad) bad |= kOrderInconsistent;
+      const double absolute_high = phi_h + kTwoPi * orders.high;
+      const double absolute_low = phi_l + kTwoPi * orders.low;
+      maps.wrapped_high.ptr<float>()[p] = wrappedFloat(phi_h);
+      maps.wrapped_low.ptr<float>()[p] = wrappedFloat(phi_l);
+      maps.modulation_high.ptr<float>()[p] = static_cast<float>(b_h);
+      maps.modulation_low.ptr<float>()[p] = static_cast<float>(b_l);
+      maps.texture.ptr<float>()[p] = static_cast<float>((sum_a_[0][p] + sum_a_[1][p]) / 2);
+      maps.fringe_order.ptr<std::int16_t>()[p] = static_cast<std::int16_t>(orders.high);
+      maps.absolute.ptr<float>()[p] = bad != 0 ? nan : static_cast<float>(absolute_high);
+      maps.fused.ptr<float>()[p] =
+          bad != 0 ? nan
+                   : static_cast<float>(setup_.fusion.fuse(absolute_high, absolute_low, b_h, b_l));
+      maps.invalid.ptr<std::uint8_t>()[p] = bad;
+      valid += bad == 0 ? 1 : 0;
+    }
+    maps.valid_fraction = static_cast<double>(valid) / static_cast<double>(pixels_);
+  }
+
+  void reset() override {
+    for (int i = 0; i < 2; ++i) {
+      std::fill(sum_c_[i].begin(), sum_c_[i].end(), 0.0);
+      std::fill(sum_s_[i].begin(), sum_s_[i].end(), 0.0);
+      std::fill(sum_a_[i].begin(), sum_a_[i].end(), 0.0);
+    }
+    std::fill(saturated_.begin(), saturated_.end(), std::uint8_t{0});
+  }
+
+  std::size_t workingStateBytes() const override {
+    return pixels_ * (6 * sizeof(double) + sizeof(std::uint8_t));
+  }
+
+ private:
+  const PipelineSetup& setup_;
+  std::size_t pixels_;
+  std::vector<double> sum_c_[2], sum_s_[2], sum_a_[2];
+  std::vector<std::uint8_t> saturated_;
+};
+
+}  // namespace
+
+std::unique_ptr<PhasePipeline> makeReferencePipeline(const PipelineSetup& setup) {
+  return std::make_unique<ReferencePipeline>(setup);
+}
+
+}  // namespace cylscan::algo

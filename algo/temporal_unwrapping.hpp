@@ -1,0 +1,96 @@
+// Two-wavelength temporal phase unwrapping (paper Eqs. 6-8, spec §1 convention).
+//
+// Both sets measure the same projector azimuth and are zero at the same azimuth.
+// With φeq = (φh − φl) mod 2π and the ratio R = λeq/λh = θl/(θl − θh),
+//   K  = round((R·φeq − φh) / 2π)   (mod the number of orders),   Φ = φh + 2πK,
+// and the residual R·φeq − φh − 2πK is the order-consistency measure. The low set
+// unwraps the same way with R − 1 = θh/(θl − θh); since R·φeq − φh and
+// (R − 1)·φeq − φl differ by exactly 2π·[φh < φl], its order is K − [φh < φl].
+// For θh = 5°, θl = 5.625°: R = 9 and R − 1 = 8, both exact.
+#pragma once
+
+#include <cstdint>
+
+#include "algo/binary_angle.hpp"
+
+namespace cylscan::algo {
+
+// Integer form of the unwrapper: binary angles in, orders and a residual out.
+struct FixedUnwrapParams {
+  std::int32_t ratio_q = 0;  // R · 2^shift, exact when R·2^shift is an integer (R = 9: 9·2^11)
+  int shift = 0;             // residual unit: 2^-(16 + shift) turn
+  std::int32_t orders_high = 1;
+  std::int32_t orders_low = 1;
+};
+
+struct FixedOrders {
+  std::int32_t high = 0;  // K of the high set, in [0, orders_high)
+  std::int32_t low = 0;   // K of the low set, in [0, orders_low)
+  std::int32_t residual = 0;  // R·φeq − φh − 2πK in units of 2^-(16+shift) turn, [-1/2, 1/2) turn
+};
+
+// All integer, no branches (selects), no overflow: R·2^(16+shift)·(1 + 1.5/R) < 2^31.
+inline FixedOrders unwrapFixed(const FixedUnwrapParams& p, BinaryAngle phi_high,
+                               BinaryAngle phi_low) {
+  const int bits = 16 + p.shift;
+  const std::int32_t unit = std::int32_t{1} << bits;
+  const std::int32_t half = unit >> 1;
+  const auto h = static_cast<std::int32_t>(phi_high);
+  const auto equivalent = static_cast<std::int32_t>(static_cast<BinaryAngle>(phi_high - phi_low));
+  const std::int32_t x = equivalent * p.ratio_q - h * (std::int32_t{1} << p.shift);  // > -unit
+  const std::int32_t biased = x + unit + half;    // > 0: shifts below act on non-negative values
+  const std::int32_t raw = (biased >> bits) - 1;  // round(x / unit) in [-1, R]
+  FixedOrders out;
+  out.residual = (biased & (unit - 1)) - half;
+  std::int32_t k = raw < 0 ? raw + p.orders_high : raw;
+  out.high = k >= p.orders_high ? k - p.orders_high : k;
+  std::int32_t kl = raw - (phi_high < phi_low ? 1 : 0);
+  kl = kl < 0 ? kl + p.orders_low : kl;
+  out.low = kl >= p.orders_low ? kl - p.orders_low : kl;
+  return out;
+}
+
+// Orders from the double-precision reference.
+struct ReferenceOrders {
+  int high = 0;
+  int low = 0;
+  double residual_rad = 0;  // R·φeq − φh − 2πK, in [-π, π)
+};
+
+class TwoWavelengthUnwrapper {
+ public:
+  // Largest supported R = θl/(θl − θh) (periods closer than 1/65 apart are not supported).
+  static constexpr double kMaxRatio = 64;
+
+  // Throws std::invalid_argument unless 0 < θh < θl and R <= kMaxRatio.
+  TwoWavelengthUnwrapper(double period_high_deg, double period_low_deg);
+
+  double ratioHigh() const { return ratio_high_; }     // λeq/λh = θl/(θl − θh)
+  double ratioLow() const { return ratio_high_ - 1; }  // λeq/λl = θh/(θl − θh)
+  double equivalentPeriodDeg() const { return period_high_deg_ * ratio_high_; }
+  double periodHighDeg() const { return period_high_deg_; }
+  double periodLowDeg() const { return period_low_deg_; }
+  // Distinct fringe orders: R and R − 1 rounded up. With a non-integer R the two
+  // patterns do not repeat together, so K wraps only approximately at the seam.
+  int ordersHigh() const { return params_.orders_high; }
+  int ordersLow() const { return params_.orders_low; }
+  bool ratioIsInteger() const { return ratio_is_integer_; }
+
+  ReferenceOrders unwrap(double phi_high_rad, double phi_low_rad) const;
+
+  const FixedUnwrapParams& fixedParams() const { return params_; }
+  FixedOrders unwrap(BinaryAngle phi_high, BinaryAngle phi_low) const {
+    return unwrapFixed(params_, phi_high, phi_low);
+  }
+  // A residual bound in radians as the integer bound of FixedOrders::residual.
+  std::int32_t fixedResidualBound(double bound_rad) const;
+  double fixedResidualToRadians(std::int32_t residual) const;
+
+ private:
+  double period_high_deg_, period_low_deg_;
+  double ratio_high_;
+  bool ratio_is_integer_;
+  FixedUnwrapParams params_;
+};
+
+}  // namespace cylscan::algo

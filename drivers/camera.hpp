@@ -1,0 +1,55 @@
+// Cameras behind a small interface: one backend per file (v4l2, libcamera, sim).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+namespace cylscan::drivers {
+
+// How an exposure is started. Neither V4L2 nor libcamera has a standard
+// trigger control, so this is the camera's strategy, set by the board profile.
+enum class TriggerMode {
+  GpioPulse,   // a pulse on a GPIO line wired to the camera's trigger input
+  Software,    // requestFrame() starts one exposure
+  FreeRunning  // the camera streams; frames are matched by timestamp
+};
+
+struct CameraConfig {
+  int width = 0;          // 0: the backend's default
+  int height = 0;
+  int bit_depth = 8;      // 8, 10, 12 or 16 significant bits
+  double exposure_us = 0; // 0: the backend's default
+  double gain = 1.0;
+  TriggerMode trigger = TriggerMode::GpioPulse;
+};
+
+struct Frame {
+  cv::Mat image;                       // CV_8UC1 or CV_16UC1 (counts unscaled)
+  std::uint64_t sequence = 0;          // increments by one per exposure; a gap is a lost frame
+  std::chrono::nanoseconds timestamp{0};  // start of exposure, CLOCK_MONOTONIC (or virtual)
+};
+
+class CameraError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class Camera {
+ public:
+  virtual ~Camera() = default;
+  virtual std::string name() const = 0;
+  virtual void configure(const CameraConfig& config) = 0;
+  virtual void start() = 0;
+  virtual void stop() = 0;
+  // Starts one exposure (TriggerMode::Software only).
+  virtual void requestFrame() = 0;
+  // Waits up to `timeout` for the next frame; nullopt on timeout.
+  virtual std::optional<Frame> waitFrame(std::chrono::nanoseconds timeout) = 0;
+};
+
+}  // namespace cylscan::drivers

@@ -1,0 +1,68 @@
+// The virtual head's physical parameters (board/sim/head.toml): projector,
+// stage, cameras, noise and the names of its GPIO lines.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <toml++/toml.h>
+
+#include "drivers/sim/camera_model.hpp"
+#include "drivers/sim/projector.hpp"
+#include "drivers/sim/stage.hpp"
+
+namespace cylscan::sim {
+
+struct LineConfig {
+  std::string name;
+  bool active_low = false;  // the device's electrical polarity
+  bool operator==(const LineConfig&) const = default;
+};
+
+struct LinesConfig {
+  LineConfig step{"step"}, dir{"dir"}, enable{"enable"}, trigger{"trigger"}, light{"light"},
+      home{"home"}, fault{"fault"};
+  bool operator==(const LinesConfig&) const = default;
+};
+
+struct NoiseConfig {
+  double scale = 0.3;  // multiplies the shot and read noise (see docs/virtual-head.md)
+  double reference_exposure_us = 10000.0;  // exposure at which light levels are given
+  bool operator==(const NoiseConfig&) const = default;
+};
+
+struct RenderConfig {
+  int exposure_samples = 5;   // sub-samples of the pattern over an exposure while the stage moves
+  int board_supersample = 2;  // s × s rays per pixel for scenes with a checkerboard
+  int threads = 0;            // 0: up to 2
+  bool pace_real_time = false;
+  bool operator==(const RenderConfig&) const = default;
+};
+
+struct HeadConfig {
+  ProjectorParams projector;
+  StageParams stage;
+  std::vector<CameraParams> cameras;  // "main" first
+  NoiseConfig noise;
+  LinesConfig lines;
+  RenderConfig render;
+  bool operator==(const HeadConfig&) const = default;
+};
+
+// The built-in head (the same values as board/sim/head.toml).
+HeadConfig defaultHeadConfig();
+
+// Reads a head file; every fault throws ConfigError naming the file, line and key.
+HeadConfig loadHeadConfig(const std::filesystem::path& file);
+// Reads the head from a table: the root of head.toml or a [sim] section of a board profile.
+HeadConfig parseHeadConfig(const toml::table& table, const std::string& file,
+                           const std::string& path = "");
+
+// Throws std::invalid_argument for impossible combinations (e.g. main not first).
+void validate(const HeadConfig& config);
+
+// The cameras at another resolution with the same fields of view.
+HeadConfig withResolution(HeadConfig config, int width, int height);
+
+}  // namespace cylscan::sim

@@ -1,0 +1,302 @@
+#include "drivers/sim/head_core.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace cylscan::sim {
+
+const char* roleName(LineRole role) {
+  static constexpr const char* kNames[] = {"step",  "dir",  "enable", "trigger",
+                                           "light", "home", "fault"};
+  return kNames[static_cast<int>(role)];
+}
+
+HeadCore::HeadCore(HeadConfig config_in, Scene scene, std::uint64_t seed_in)
+    : config((validate(config_in), std::move(config_in))),
+      seed(seed_in),
+      clock(config.render.pace_real_time),
+      projector(config.projector),
+      stage(config.stage),
+      noise(seed_in),
+      scene_(std::move(scene)) {
+  for (const CameraParams& p : config.cameras)
+    camera_models.emplace_back(p);
+  geometry_.resize(camera_models.size());
+  for (int i = 0; i < static_cast<int>(camera_models.size()); ++i) {
+    cameras.push_back(std::make_unique<VirtualCamera>(*this, i));
+  }
+  light_history_.push({Nanoseconds{0}, false});
+}
+
+HeadCore::~HeadCore() = default;
+
+const LineConfig& HeadCore::line(LineRole role) const {
+  const LinesConfig& l = config.lines;
+  switch (role) {
+    case LineRole::Step:
+      return l.step;
+    case LineRole::Dir:
+      return l.dir;
+    case LineRole::Enable:
+      return l.enable;
+    case LineRole::Trigger:
+      return l.trigger;
+    case LineRole::Light:
+      return l.light;
+    case LineRole::Home:
+      return l.home;
+    case LineRole::Fault:
+      return l.fault;
+  }
+  return l.fault;
+}
+
+std::optional<LineRole> HeadCore::roleOf(std::string_view name) const {
+  for (int r = 0; r < kLineRoles; ++r) {
+    if (line(static_cast<LineRole>(r)).name == name) return static_cast<LineRole>(r);
+  }
+  return std::nullopt;
+}
+
+int HeadCore::cameraIndex(std::string_view name) const {
+  for (std::size_t i = 0; i < camera_models.size(); ++i) {
+    if (camera_models[i].params().name == name) return static_cast<int>(i);
+  }
+  throw std::invalid_argument("virtual head: no camera '" + std::string(name) + "'");
+}
+
+void HeadCore::drive(LineRole role, bool active) {
+  const auto r = static_cast<std::size_t>(role);
+  const bool rising = active && !level[r];
+  level[r] = active;
+  const Nanoseconds t = clock.now();
+  switch (role) {
+    case LineRole::Step:
+      if (rising) stage.stepPulse(t);
+      break;
+    case LineRole::Dir:
+      stage.setDirection(active);
+      break;
+    case LineRole::Enable:
+      stage.setEnabled(active, t);
+      break;
+    case LineRole::Trigger:
+      if (rising) {
+        for (auto& cam : cameras)
+          cam->triggerEdge(t);
+      }
+      break;
+    case LineRole::Light:
+      light_history_.push({t, active});
+      break;
+    case LineRole::Home:
+    case LineRole::Fault:
+      break;
+  }
+}
+
+bool HeadCore::lightAt(Nanoseconds t) const {
+  std::uint64_t lo = light_history_.oldest(), hi = light_history_.count();
+  while (hi - lo > 1) {
+    const std::uint64_t mid = lo + (hi - lo) / 2;
+    if (light_history_.at(mid).time <= t) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return light_history_.at(lo).on;
+}
+
+std::shared_ptr<const PixelGeometry> HeadCore::geometryFor(int camera) {
+  std::lock_guard lock(scene_mutex_);
+  auto& slot = geometry_[static_cast<std::size_t>(camera)];
+  if (!slot) {
+    TraceOptions options;
+    options.threads = config.render.threads;
+    const bool board = std::any_of(scene_.objects.begin(), scene_.objects.end(), [](const auto& o) {
+      return std::holds_alternative<Checkerboard>(o.shape);
+    });
+    options.supersample = board ? config.render.board_supersample : 1;
+    slot = std::make_shared<const PixelGeometry>(
+        tracePixels(scene_, camera_models[static_cast<std::size_t>(camera)], projector, options));
+  }
+  return slot;
+}
+
+void HeadCore::setScene(Scene scene) {
+  std::lock_guard lock(scene_mutex_);
+  scene_ = std::move(scene);
+  for (auto& g : geometry_)
+    g.reset();
+}
+
+Scene HeadCore::scene() const {
+  std::lock_guard lock(scene_mutex_);
+  return scene_;
+}
+
+// ---- VirtualCamera ---------------------------------------------------------
+
+VirtualCamera::VirtualCamera(HeadCore& core, int index)
+    : core_(core),
+      index_(index),
+      params_(core.camera_models[static_cast<std::size_t>(index)].params()) {}
+
+std::string VirtualCamera::name() const {
+  return params_.name;
+}
+
+VirtualCamera::Nanoseconds VirtualCamera::exposure() const {
+  return Nanoseconds{std::llround(params_.exposure_us * 1e3)};
+}
+
+void VirtualCamera::configure(const drivers::CameraConfig& config) {
+  if (started_)
+    throw drivers::CameraError("camera '" + params_.name + "': configure while started");
+  const CameraParams& model = core_.camera_models[static_cast<std::size_t>(index_)].params();
+  if ((config.width != 0 && config.width != model.width) ||
+      (config.height != 0 && config.height != model.height)) {
+    throw drivers::CameraError("camera '" + params_.name + "': the sensor is " +
+                               std::to_string(model.width) + "x" + std::to_string(model.height) +
+                               ", cannot deliver " + std::to_string(config.width) + "x" +
+                               std::to_string(config.height));
+  }
+  if (config.bit_depth != 8 && config.bit_depth != 10 && config.bit_depth != 12 &&
+      config.bit_depth != 16) {
+    throw drivers::CameraError("camera '" + params_.name + "': bit_depth " +
+                               std::to_string(config.bit_depth) + " not supported (8/10/12/16)");
+  }
+  if (config.exposure_us < 0 || !std::isfinite(config.exposure_us)) {
+    throw drivers::CameraError("camera '" + params_.name + "': exposure_us must be >= 0");
+  }
+  if (!(config.gain > 0) || !std::isfinite(config.gain)) {
+    throw drivers::CameraError("camera '" + params_.name + "': gain must be > 0");
+  }
+  params_.bit_depth = config.bit_depth;
+  params_.exposure_us = config.exposure_us > 0 ? config.exposure_us : model.exposure_us;
+  params_.gain = config.gain;
+  mode_ = config.trigger;
+}
+
+void VirtualCamera::start() {
+  pending_.clear();
+  stream_origin_ = core_.clock.now();
+  started_ = true;
+}
+
+void VirtualCamera::stop() {
+  started_ = false;
+  pending_.clear();
+}
+
+bool VirtualCamera::expose(Nanoseconds start) {
+  if (start < last_start_ + exposure()) {  // still exposing the previous frame
+    ++missed_;
+    return false;
+  }
+  if (!pending_.push({start, next_sequence_})) {
+    ++missed_;
+    return false;
+  }
+  last_start_ = start;
+  ++next_sequence_;
+  return true;
+}
+
+void VirtualCamera::triggerEdge(Nanoseconds t) {
+  if (!started_ || mode_ != drivers::TriggerMode::GpioPulse) return;
+  expose(t + Nanoseconds{std::llround(params_.trigger_latency_us * 1e3)});
+}
+
+void VirtualCamera::requestFrame() {
+  if (mode_ != drivers::TriggerMode::Software) {
+    throw drivers::CameraError("camera '" + params_.name +
+                               "': requestFrame needs TriggerMode::Software");
+  }
+  if (!started_) throw drivers::CameraError("camera '" + params_.name + "': not started");
+  const Nanoseconds t = core_.clock.now();
+  if (!expose(t + Nanoseconds{std::llround(params_.trigger_latency_us * 1e3)})) {
+    throw drivers::CameraError("camera '" + params_.name + "': busy, frame request refused");
+  }
+}
+
+std::optional<drivers::Frame> VirtualCamera::waitFrame(Nanoseconds timeout) {
+  if (!started_) throw drivers::CameraError("camera '" + params_.name + "': not started");
+  const Nanoseconds deadline = core_.clock.now() + std::max(timeout, Nanoseconds{0});
+  const Nanoseconds readout{std::llround(params_.readout_us * 1e3)};
+  for (;;) {
+    if (mode_ == drivers::TriggerMode::FreeRunning && pending_.empty()) {
+      const Nanoseconds period{std::llround(1e9 / params_.frame_rate_hz)};
+      const Nanoseconds now = core_.clock.now();
+      const auto k = (now - stream_origin_ + period - Nanoseconds{1}) / period;
+      expose(std::max(stream_origin_ + k * period, last_start_ + std::max(period, exposure())));
+    }
+    const std::optional<Pending> p = pending_.front();
+    const Nanoseconds now = core_.clock.now();
+    if (!p) {
+      if (now >= deadline) return std::nullopt;
+      // Nothing is coming unless another thread triggers: let time pass.
+      const Nanoseconds step =
+          core_.clock.paced() ? std::chrono::microseconds(200) : deadline - now;
+      core_.clock.sleepUntil(std::min(deadline, now + step));
+      continue;
+    }
+    const Nanoseconds ready = p->start + exposure() + readout + Nanoseconds{delay_ns_.load()};
+    if (ready > deadline) {
+      core_.clock.sleepUntil(deadline);
+      return std::nullopt;
+    }
+    core_.clock.sleepUntil(ready);
+    delay_ns_ = 0;
+    pending_.pop();
+    if (drop_ > 0) {  // exposed, never delivered: a gap in the sequence
+      --drop_;
+      continue;
+    }
+    return render(*p);
+  }
+}
+
+drivers::Frame VirtualCamera::render(const Pending& p) {
+  const auto geometry = core_.geometryFor(index_);
+  Exposure e;
+  const int n = core_.config.render.exposure_samples;
+  const Nanoseconds exp = exposure();
+  for (int j = 0; j < n; ++j) {
+    const Nanoseconds t = p.start + exp * (2 * j + 1) / (2 * n);
+    e.stage_deg[static_cast<std::size_t>(j)] = core_.stage.angleAt(t);
+    e.light[static_cast<std::size_t>(j)] = core_.lightAt(t);
+  }
+  e.samples = n;
+  bool uniform = true;
+  for (int j = 1; j < n; ++j) {
+    const auto k = static_cast<std::size_t>(j);
+    uniform =
+        uniform && std::abs(e.stage_deg[k] - e.stage_deg[0]) < 1e-9 && e.light[k] == e.light[0];
+  }
+  if (uniform) e.samples = 1;
+  e.exposure_us = params_.exposure_us;
+  e.reference_exposure_us = core_.config.noise.reference_exposure_us;
+  e.gain = params_.gain;
+  e.bit_depth = params_.bit_depth;
+  e.full_well_e = params_.full_well_e;
+  e.read_noise_e = params_.read_noise_e;
+  e.noise_scale = core_.config.noise.scale;
+  e.noise_key =
+      mixBits(core_.seed ^ mixBits((static_cast<std::uint64_t>(index_) << 48) ^ p.sequence));
+  drivers::Frame frame;
+  frame.image =
+      renderFrame(*geometry, core_.projector, e, core_.noise, core_.config.render.threads);
+  frame.sequence = p.sequence;
+  frame.timestamp = p.start;
+  if (corrupt_ > 0) {  // a torn transfer: the lower half of the frame is garbage
+    --corrupt_;
+    cv::Mat lower = frame.image.rowRange(frame.image.rows / 2, frame.image.rows);
+    cv::randu(lower, 0, frame.image.depth() == CV_8U ? 256 : 4096);
+  }
+  return frame;
+}
+
+}  // namespace cylscan::sim

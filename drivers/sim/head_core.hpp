@@ -1,0 +1,119 @@
+// Internal state of a VirtualHead shared by its GPIO lines and cameras.
+// Not part of the public API (include virtual_head.hpp).
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string_view>
+#include <vector>
+
+#include "drivers/camera.hpp"
+#include "drivers/sim/camera_model.hpp"
+#include "drivers/sim/event_ring.hpp"
+#include "drivers/sim/head_config.hpp"
+#include "drivers/sim/projector.hpp"
+#include "drivers/sim/renderer.hpp"
+#include "drivers/sim/scene.hpp"
+#include "drivers/sim/stage.hpp"
+#include "drivers/sim/virtual_clock.hpp"
+
+namespace cylscan::sim {
+
+enum class LineRole { Step, Dir, Enable, Trigger, Light, Home, Fault };
+inline constexpr int kLineRoles = 7;
+const char* roleName(LineRole role);
+inline bool isInput(LineRole r) {
+  return r == LineRole::Home || r == LineRole::Fault;
+}
+
+class VirtualCamera;
+
+struct HeadCore {
+  using Nanoseconds = std::chrono::nanoseconds;
+
+  HeadCore(HeadConfig config, Scene scene, std::uint64_t seed);
+  ~HeadCore();
+
+  // Real-time path: a line's device-side level changed (no allocation, no lock).
+  void drive(LineRole role, bool device_active);
+  bool lightAt(Nanoseconds t) const;
+  const LineConfig& line(LineRole role) const;
+  std::optional<LineRole> roleOf(std::string_view name) const;
+  int cameraIndex(std::string_view name) const;  // throws std::invalid_argument
+
+  // The traced optics of a camera for the current scene (traced on first use).
+  std::shared_ptr<const PixelGeometry> geometryFor(int camera);
+  void setScene(Scene scene);
+  Scene scene() const;
+
+  HeadConfig config;
+  std::uint64_t seed;
+  VirtualClock clock;
+  CylindricalProjector projector;
+  StageModel stage;
+  NoiseTable noise;
+  std::vector<CameraModel> camera_models;
+  std::vector<std::unique_ptr<VirtualCamera>> cameras;
+  std::array<bool, kLineRoles> requested{};
+  std::array<bool, kLineRoles> level{};  // device-side active state of the outputs
+
+ private:
+  struct LightSample {
+    Nanoseconds time{0};
+    bool on = false;
+  };
+  HistoryRing<LightSample, 4096> light_history_;
+  mutable std::mutex scene_mutex_;
+  Scene scene_;
+  std::vector<std::shared_ptr<const PixelGeometry>> geometry_;
+};
+
+class VirtualCamera final : public drivers::Camera {
+ public:
+  using Nanoseconds = std::chrono::nanoseconds;
+  VirtualCamera(HeadCore& core, int index);
+
+  std::string name() const override;
+  void configure(const drivers::CameraConfig& config) override;
+  void start() override;
+  void stop() override;
+  void requestFrame() override;
+  std::optional<drivers::Frame> waitFrame(Nanoseconds timeout) override;
+
+  // A trigger edge on the trigger line (real-time path).
+  void triggerEdge(Nanoseconds t);
+
+  // Fault injection.
+  void dropFrames(int count) { drop_ += count; }
+  void delayNextFrame(Nanoseconds delay) { delay_ns_ += delay.count(); }
+  void corruptNextFrame() { ++corrupt_; }
+  std::uint64_t missedTriggers() const { return missed_; }
+
+ private:
+  struct Pending {
+    Nanoseconds start{0};
+    std::uint64_t sequence = 0;
+  };
+  bool expose(Nanoseconds start);
+  drivers::Frame render(const Pending& p);
+  Nanoseconds exposure() const;
+
+  HeadCore& core_;
+  int index_;
+  CameraParams params_;  // the configured sensor (exposure, gain, bit depth)
+  drivers::TriggerMode mode_ = drivers::TriggerMode::GpioPulse;
+  std::atomic<bool> started_{false};
+  SpscQueue<Pending, 256> pending_;
+  std::uint64_t next_sequence_ = 0;
+  Nanoseconds last_start_{-1'000'000'000'000};
+  Nanoseconds stream_origin_{0};
+  std::atomic<int> drop_{0};
+  std::atomic<int> corrupt_{0};
+  std::atomic<std::int64_t> delay_ns_{0};
+  std::atomic<std::uint64_t> missed_{0};
+};
+
+}  // namespace cylscan::sim

@@ -1,0 +1,453 @@
+#include "formats/capture_bundle.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <stdexcept>
+#include <system_error>
+#include <utility>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "formats/atomic_file.hpp"
+#include "formats/file_reading.hpp"
+#include "formats/input_error.hpp"
+#include "formats/png.hpp"
+
+namespace cylscan::formats {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr std::uintmax_t kMaxCaptureJsonBytes = 64u << 20;
+constexpr std::string_view kCaptureJson = "capture.json";
+
+std::string inQuotes(std::string_view s) {
+  return "\"" + std::string(s) + "\"";
+}
+
+std::string jsonTypeName(const json& value) {
+  return value.type_name();
+}
+
+std::optional<std::string> cameraNameFault(std::string_view name) {
+  if (name.empty()) return "is empty";
+  if (name == "." || name == "..") return "is not a directory name";
+  if (name.find_first_of(std::string_view("/\\\0", 3)) != std::string_view::npos) {
+    return "must be a single path component (no '/', '\\' or NUL)";
+  }
+  return std::nullopt;
+}
+
+// Fault of the info itself (shared by reader and writer), in capture.json terms.
+std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
+  if (info.cameras.empty()) return "\"cameras\" is empty (it must contain \"main\")";
+  for (std::size_t i = 0; i < info.cameras.size(); ++i) {
+    const std::string& name = info.cameras[i];
+    if (auto fault = cameraNameFault(name)) {
+      return "camera name " + inQuotes(name) + " in \"cameras\" " + *fault;
+    }
+    for (std::size_t j = 0; j < i; ++j) {
+      if (info.cameras[j] == name)
+        return "camera " + inQuotes(name) + " is listed twice in \"cameras\"";
+    }
+  }
+  if (std::find(info.cameras.begin(), info.cameras.end(), "main") == info.cameras.end()) {
+    return "\"cameras\" does not contain \"main\"";
+  }
+  for (const FringeSetId id : kFringeSets) {
+    const FringeSetInfo& set = info.set(id);
+    const std::string where = "sets." + std::string(toString(id));
+    if (!std::isfinite(set.period_deg) || set.period_deg <= 0) {
+      return inQuotes(where + ".period_deg") + " must be a finite number > 0";
+    }
+    if (set.stage_deg.size() < static_cast<std::size_t>(kMinFramesPerSet)) {
+      return "set " + inQuotes(toString(id)) + " has " + std::to_string(set.stage_deg.size()) +
+             " frames; at least " + std::to_string(kMinFramesPerSet) + " are needed";
+    }
+    for (std::size_t k = 0; k < set.stage_deg.size(); ++k) {
+      if (!std::isfinite(set.stage_deg[k])) {
+        return inQuotes(where + ".stage_deg[" + std::to_string(k) + "]") + " is not finite";
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+// Turns the parsed capture.json into CaptureInfo, or InputError naming the file.
+class CaptureJsonParser {
+ public:
+  explicit CaptureJsonParser(fs::path file) : file_(std::move(file)) {}
+
+  CaptureInfo parse(const json& doc) const {
+    if (!doc.is_object()) fail("the top level is a " + jsonTypeName(doc) + ", not a JSON object");
+    CaptureInfo info;
+    checkFormat(doc);
+    info.cameras = cameras(doc);
+    readSets(doc, info);
+    info.extra = doc;
+    info.extra.erase("format");
+    info.extra.erase("cameras");
+    info.extra.erase("sets");
+    json set_extras = json::object();
+    for (const FringeSetId id : kFringeSets) {
+      json extra = doc.at("sets").at(std::string(toString(id)));
+      extra.erase("period_deg");
+      extra.erase("stage_deg");
+      if (!extra.empty()) set_extras[std::string(toString(id))] = std::move(extra);
+    }
+    if (!set_extras.empty()) info.extra["sets"] = std::move(set_extras);
+    if (auto fault = captureInfoFault(info)) fail(*fault);  // the rules shared with the writer
+    return info;
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& fault) const { throw InputError(file_, fault); }
+
+  void checkFormat(const json& doc) const {
+    const auto it = doc.find("format");
+    if (it == doc.end()) fail("missing \"format\" (expected " + inQuotes(kCaptureFormat) + ")");
+    if (!it->is_string()) fail("\"format\" is a " + jsonTypeName(*it) + ", not a string");
+    if (it->get_ref<const std::string&>() != kCaptureFormat) {
+      fail("unsupported format " + inQuotes(it->get_ref<const std::string&>()) + " (expected " +
+           inQuotes(kCaptureFormat) + ")");
+    }
+  }
+
+  std::vector<std::string> cameras(const json& doc) const {
+    const auto it = doc.find("cameras");
+    if (it == doc.end()) fail("missing \"cameras\" (a list of camera names with \"main\")");
+    if (!it->is_array()) fail("\"cameras\" is a " + jsonTypeName(*it) + ", not a list of names");
+    std::vector<std::string> names;
+    for (std::size_t i = 0; i < it->size(); ++i) {
+      const json& name = (*it)[i];
+      if (!name.is_string()) {
+        fail("\"cameras[" + std::to_string(i) + "]\" is a " + jsonTypeName(name) +
+             ", not a string");
+      }
+      names.push_back(name.get<std::string>());
+    }
+    return names;
+  }
+
+  void readSets(const json& doc, CaptureInfo& info) const {
+    const auto it = doc.find("sets");
+    if (it == doc.end()) fail("missing \"sets\" (expected \"high\" and \"low\")");
+    if (!it->is_object()) fail("\"sets\" is a " + jsonTypeName(*it) + ", not an object");
+    for (const auto& [name, value] : it->items()) {
+      if (name != toString(FringeSetId::High) && name != toString(FringeSetId::Low)) {
+        fail("unknown fringe set " + inQuotes(name) +
+             " in \"sets\" (expected exactly \"high\" and "
+             "\"low\")");
+      }
+    }
+    for (const FringeSetId id : kFringeSets) {
+      const std::string name(toString(id));
+      const auto set = it->find(name);
+      if (set == it->end()) fail("missing set " + inQuotes(name) + " in \"sets\"");
+      info.set(id) = readSet(*set, "sets." + name);
+    }
+  }
+
+  FringeSetInfo readSet(const json& set, const std::string& where) const {
+    if (!set.is_object()) fail(inQuotes(where) + " is a " + jsonTypeName(set) + ", not an object");
+    FringeSetInfo info;
+    const auto period = set.find("period_deg");
+    if (period == set.end()) fail("missing " + inQuotes(where + ".period_deg"));
+    info.period_deg = finiteNumber(*period, where + ".period_deg");
+    if (info.period_deg <= 0) {
+      fail(inQuotes(where + ".period_deg") + " is " + std::to_string(info.period_deg) +
+           "; it must be > 0");
+    }
+    const auto stage = set.find("stage_deg");
+    if (stage == set.end()) fail("missing " + inQuotes(where + ".stage_deg"));
+    if (!stage->is_array()) {
+      fail(inQuotes(where + ".stage_deg") + " is a " + jsonTypeName(*stage) + ", not a list");
+    }
+    for (std::size_t k = 0; k < stage->size(); ++k) {
+      info.stage_deg.push_back(
+          finiteNumber((*stage)[k], where + ".stage_deg[" + std::to_string(k) + "]"));
+    }
+    if (info.stage_deg.size() < static_cast<std::size_t>(kMinFramesPerSet)) {
+      fail(inQuotes(where + ".stage_deg") + " lists " + std::to_string(info.stage_deg.size()) +
+           " frames; a set needs at least " + std::to_string(kMinFramesPerSet));
+    }
+    return info;
+  }
+
+  double finiteNumber(const json& value, const std::string& where) const {
+    if (!value.is_number())
+      fail(inQuotes(where) + " is a " + jsonTypeName(value) + ", not a number");
+    const double v = value.get<double>();
+    if (!std::isfinite(v)) fail(inQuotes(where) + " is not a finite number");
+    return v;
+  }
+
+  fs::path file_;
+};
+
+// Frame files of a set directory: names made of digits + ".png", with their index.
+std::vector<std::pair<std::string, std::uintmax_t>> frameFilesIn(const fs::path& set_dir) {
+  std::vector<std::pair<std::string, std::uintmax_t>> files;
+  std::error_code ec;
+  if (!fs::is_directory(set_dir, ec)) return files;
+  fs::directory_iterator it(set_dir, ec);
+  for (; !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= 4 || name.substr(name.size() - 4) != ".png") continue;
+    const std::string digits = name.substr(0, name.size() - 4);
+    if (digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    std::uintmax_t index = 0;
+    for (const char c : digits) {
+      index = std::min<std::uintmax_t>(index * 10 + static_cast<std::uintmax_t>(c - '0'), 1u << 30);
+    }
+    files.emplace_back(name, index);
+  }
+  if (ec) throw InputError(set_dir, "cannot list the directory: " + ec.message());
+  return files;
+}
+
+std::string sizeText(cv::Size size) {
+  return std::to_string(size.width) + "x" + std::to_string(size.height);
+}
+
+PngLimits pngLimits(const FrameLimits& limits) {
+  return PngLimits{limits.max_width, limits.max_height, limits.max_pixels};
+}
+
+// The header checks of a frame: single channel, 8/16 bit, within limits.
+PngHeader checkFrameHeader(const fs::path& file, const FrameLimits& limits) {
+  const PngHeader header = readPngHeader(file, pngLimits(limits));
+  if (header.colour_type != 0) {
+    throw InputError(
+        file, "frame has " + std::to_string(header.channels()) + " channel(s) (PNG colour type " +
+                  std::to_string(header.colour_type) + "); frames must be single-channel grey");
+  }
+  if (header.bit_depth != 8 && header.bit_depth != 16) {
+    throw InputError(file, "frame has " + std::to_string(header.bit_depth) +
+                               "-bit samples; frames must be 8-bit or 16-bit");
+  }
+  return header;
+}
+
+}  // namespace
+
+std::string_view toString(FringeSetId id) {
+  return id == FringeSetId::High ? "high" : "low";
+}
+
+std::string frameFileName(int k, int n) {
+  if (n < 1 || k < 0 || k >= n) {
+    throw std::invalid_argument("frameFileName: frame " + std::to_string(k) +
+                                " is outside a set of " + std::to_string(n));
+  }
+  const std::size_t width = n >= 100 ? std::to_string(n).size() : 2;
+  const std::string digits = std::to_string(k);
+  return std::string(width - std::min(width, digits.size()), '0') + digits;
+}
+
+// ----------------------------------------------------------------------------- reader
+
+CaptureBundleReader::CaptureBundleReader(fs::path dir, FrameLimits limits)
+    : dir_(std::move(dir)), limits_(limits) {
+  const fs::path json_file = dir_ / kCaptureJson;
+  std::error_code ec;
+  if (!fs::exists(json_file, ec) && fs::is_directory(dir_, ec)) {
+    throw InputError(json_file, "missing: " + dir_.string() + " is not a capture bundle");
+  }
+  const json doc = readJsonFile(json_file, kMaxCaptureJsonBytes);
+  info_ = CaptureJsonParser(json_file).parse(doc);
+
+  for (const std::string& camera : info_.cameras) {
+    std::optional<cv::Size> first;
+    fs::path first_path;
+    for (const FringeSetId id : kFringeSets) {
+      const std::size_t n = info_.set(id).stage_deg.size();
+      const fs::path set_dir = dir_ / camera / std::string(toString(id));
+      for (const auto& [name, index] : frameFilesIn(set_dir)) {
+        if (index >= n) {
+          throw InputError(json_file,
+                           "fewer angles than frames: " +
+                               inQuotes("sets." + std::string(toString(id)) + ".stage_deg") +
+                               " lists " + std::to_string(n) + " angles but frame " +
+                               (fs::path(camera) / toString(id) / name).string() + " exists");
+        }
+      }
+      for (int k = 0; k < static_cast<int>(n); ++k) {
+        const fs::path frame = framePath(camera, id, k);
+        if (!fs::exists(frame, ec)) {
+          throw InputError(frame, "frame is missing (capture.json lists " + std::to_string(n) +
+                                      " frames in set " + inQuotes(toString(id)) + ")");
+        }
+        const PngHeader header = checkFrameHeader(frame, limits_);
+        const cv::Size size(header.width, header.height);
+        if (!first) {
+          first = size;
+          first_path = frame;
+        } else if (size != *first) {
+          throw InputError(frame, "frame size " + sizeText(size) + " differs from the " +
+                                      sizeText(*first) + " of the camera's first frame " +
+                                      first_path.string());
+        }
+      }
+    }
+    frame_sizes_.emplace(camera, *first);
+  }
+}
+
+bool CaptureBundleReader::hasCamera(std::string_view camera) const {
+  return frame_sizes_.find(camera) != frame_sizes_.end();
+}
+
+int CaptureBundleReader::frameCount(FringeSetId set) const {
+  return static_cast<int>(info_.set(set).stage_deg.size());
+}
+
+fs::path CaptureBundleReader::framePath(std::string_view camera, FringeSetId set, int k) const {
+  if (std::find(info_.cameras.begin(), info_.cameras.end(), camera) == info_.cameras.end()) {
+    std::string list;
+    for (const std::string& name : info_.cameras)
+      list += (list.empty() ? "" : ", ") + name;
+    throw InputError(dir_ / kCaptureJson,
+                     "the bundle has no camera " + inQuotes(camera) + " (cameras: " + list + ")");
+  }
+  const int n = frameCount(set);
+  if (k < 0 || k >= n) {
+    throw std::out_of_range("frame " + std::to_string(k) + " of set " + inQuotes(toString(set)) +
+                            " is outside 0.." + std::to_string(n - 1) + " in " + dir_.string());
+  }
+  return dir_ / camera / std::string(toString(set)) / (frameFileName(k, n) + ".png");
+}
+
+cv::Size CaptureBundleReader::frameSize(std::string_view camera) const {
+  const auto it = frame_sizes_.find(camera);
+  if (it == frame_sizes_.end()) {
+    (void)framePath(camera, FringeSetId::High, 0);  // throws the InputError for the camera
+    throw std::logic_error("no frame size for camera " + inQuotes(camera));
+  }
+  return it->second;
+}
+
+cv::Mat CaptureBundleReader::readFrame(std::string_view camera, FringeSetId set, int k) const {
+  const fs::path file = framePath(camera, set, k);
+  const cv::Size expected = frameSize(camera);
+  const PngHeader header = checkFrameHeader(file, limits_);
+  if (cv::Size(header.width, header.height) != expected) {
+    throw InputError(file, "frame size " + sizeText(cv::Size(header.width, header.height)) +
+                               " differs from the " + sizeText(expected) +
+                               " of the camera's first frame");
+  }
+  PngHeader decoded_header;
+  cv::Mat frame = readPng(file, pngLimits(limits_), &decoded_header);
+  if (decoded_header.colour_type != 0 || frame.channels() != 1 ||
+      cv::Size(decoded_header.width, decoded_header.height) != expected) {
+    throw InputError(file, "changed while being read");
+  }
+  return frame;
+}
+
+// ----------------------------------------------------------------------------- writer
+
+CaptureBundleWriter::CaptureBundleWriter(fs::path dir, CaptureInfo info)
+    : dir_(std::move(dir)), info_(std::move(info)) {
+  const fs::path json_file = dir_ / kCaptureJson;
+  if (auto fault = captureInfoFault(info_)) {
+    throw std::invalid_argument("capture bundle " + dir_.string() + ": " + *fault);
+  }
+  if (!info_.extra.is_object()) {
+    throw std::invalid_argument("capture bundle " + dir_.string() +
+                                ": CaptureInfo::extra must be a JSON object");
+  }
+  if (const auto sets = info_.extra.find("sets"); sets != info_.extra.end()) {
+    bool ok = sets->is_object();
+    if (ok) {
+      for (const auto& [name, value] : sets->items()) {
+        ok = ok && value.is_object() &&
+             (name == toString(FringeSetId::High) || name == toString(FringeSetId::Low));
+      }
+    }
+    if (!ok) {
+      throw std::invalid_argument("capture bundle " + dir_.string() +
+                                  ": CaptureInfo::extra[\"sets\"] may only hold objects "
+                                  "\"high\" and \"low\"");
+    }
+  }
+  fs::create_directories(dir_);
+  fs::remove(json_file);  // the bundle is being rewritten: not whole until commit()
+  for (const std::string& camera : info_.cameras) {
+    CameraProgress& progress = progress_[camera];
+    for (const FringeSetId id : kFringeSets) {
+      progress.written[static_cast<std::size_t>(id)].assign(info_.set(id).stage_deg.size(), false);
+    }
+  }
+}
+
+void CaptureBundleWriter::writeFrame(std::string_view camera, FringeSetId set, int k,
+                                     const cv::Mat& frame) {
+  const auto it = progress_.find(camera);
+  const std::string where = "capture bundle " + dir_.string() + ", camera " + inQuotes(camera);
+  if (it == progress_.end()) throw std::invalid_argument(where + ": not in CaptureInfo::cameras");
+  const int n = static_cast<int>(info_.set(set).stage_deg.size());
+  if (k < 0 || k >= n) {
+    throw std::invalid_argument(where + ": frame " + std::to_string(k) + " is outside set " +
+                                inQuotes(toString(set)) + " of " + std::to_string(n) + " frames");
+  }
+  if (frame.empty() || (frame.type() != CV_8UC1 && frame.type() != CV_16UC1)) {
+    throw std::invalid_argument(where + ": frames must be non-empty CV_8UC1 or CV_16UC1 images");
+  }
+  CameraProgress& progress = it->second;
+  const bool any_written = progress.size != cv::Size();
+  if (any_written && frame.size() != progress.size) {
+    throw std::invalid_argument(where + ": frame size " + sizeText(frame.size()) +
+                                " differs from the camera's " + sizeText(progress.size));
+  }
+  const fs::path set_dir = dir_ / std::string(camera) / std::string(toString(set));
+  fs::create_directories(set_dir);
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", frame, png)) {
+    throw std::runtime_error(where + ": cannot encode frame " + std::to_string(k) + " as PNG");
+  }
+  writeFileAtomically(set_dir / (frameFileName(k, n) + ".png"), std::as_bytes(std::span(png)));
+  progress.size = frame.size();
+  progress.written[static_cast<std::size_t>(set)][static_cast<std::size_t>(k)] = true;
+}
+
+void CaptureBundleWriter::commit() {
+  for (const std::string& camera : info_.cameras) {
+    const CameraProgress& progress = progress_.at(camera);
+    for (const FringeSetId id : kFringeSets) {
+      const auto& written = progress.written[static_cast<std::size_t>(id)];
+      const int n = static_cast<int>(written.size());
+      for (int k = 0; k < n; ++k) {
+        if (!written[static_cast<std::size_t>(k)]) {
+          throw std::logic_error(
+              "capture bundle " + dir_.string() + ": commit() before frame " +
+              (fs::path(camera) / toString(id) / (frameFileName(k, n) + ".png")).string() +
+              " was written");
+        }
+      }
+      const fs::path set_dir = dir_ / camera / std::string(toString(id));
+      for (const auto& [name, index] : frameFilesIn(set_dir)) {
+        if (index >= static_cast<std::uintmax_t>(n) ||
+            name != frameFileName(static_cast<int>(index), n) + ".png") {
+          fs::remove(set_dir / name);  // left over from an earlier bundle in this directory
+        }
+      }
+    }
+  }
+  json doc = info_.extra;
+  doc["format"] = kCaptureFormat;
+  doc["cameras"] = info_.cameras;
+  json& sets = doc["sets"];
+  if (!sets.is_object()) sets = json::object();
+  for (const FringeSetId id : kFringeSets) {
+    json& set = sets[std::string(toString(id))];
+    if (!set.is_object()) set = json::object();
+    set["period_deg"] = info_.set(id).period_deg;
+    set["stage_deg"] = info_.set(id).stage_deg;
+  }
+  writeFileAtomically(dir_ / kCaptureJson, doc.dump(2) + "\n");
+}
+
+}  // namespace cylscan::formats

@@ -1,0 +1,112 @@
+// The capture bundle, format `cylscan-capture-1` (spec §1).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+namespace cylscan::formats {
+
+enum class FringeSetId { High, Low };
+std::string_view toString(FringeSetId id);  // "high" / "low"
+inline constexpr std::array<FringeSetId, 2> kFringeSets{FringeSetId::High, FringeSetId::Low};
+
+struct FringeSetInfo {
+  double period_deg = 0;          // θh or θl
+  std::vector<double> stage_deg;  // executed stage angle of each frame
+};
+
+struct CaptureInfo {
+  std::vector<std::string> cameras;  // "main" first; "aux" for calibration bundles
+  FringeSetInfo high;
+  FringeSetInfo low;
+  // Unknown/extra fields, kept on write. Mirrors the layout of capture.json
+  // without the known fields: top-level extras at the top, extras inside a set
+  // object under "sets" → "high"/"low" (e.g. {"exposure_us": 800,
+  // "sets": {"high": {"steps": [..]}}}). The writer merges the known fields over it.
+  nlohmann::json extra = nlohmann::json::object();
+
+  const FringeSetInfo& set(FringeSetId id) const { return id == FringeSetId::High ? high : low; }
+  FringeSetInfo& set(FringeSetId id) { return id == FringeSetId::High ? high : low; }
+};
+
+// Limits applied before any frame is decoded.
+struct FrameLimits {
+  int max_width = 16384;
+  int max_height = 16384;
+  std::int64_t max_pixels = 64LL * 1024 * 1024;
+};
+
+// Reads and validates a bundle. Every fault throws InputError naming the file.
+// The constructor validates capture.json and every frame's PNG header (present,
+// single-channel, 8/16-bit, within limits, one size per camera, no frame files
+// beyond the angle list) without decoding any frame.
+class CaptureBundleReader {
+ public:
+  explicit CaptureBundleReader(std::filesystem::path dir, FrameLimits limits = {});
+
+  const std::filesystem::path& dir() const { return dir_; }
+  const CaptureInfo& info() const { return info_; }
+  bool hasCamera(std::string_view camera) const;
+  int frameCount(FringeSetId set) const;
+  // InputError (naming capture.json) for a camera the bundle does not have;
+  // std::out_of_range for k outside [0, frameCount(set)).
+  std::filesystem::path framePath(std::string_view camera, FringeSetId set, int k) const;
+  // The size all frames of the camera share (checked when the bundle was opened).
+  cv::Size frameSize(std::string_view camera) const;
+
+  // Frame k of a set: CV_8UC1 or CV_16UC1. The PNG header is checked (single
+  // channel, 8/16 bit, size within limits and equal to the camera's first
+  // frame) before the image is decoded; a truncated or corrupt file is an error.
+  cv::Mat readFrame(std::string_view camera, FringeSetId set, int k) const;
+
+ private:
+  std::filesystem::path dir_;
+  FrameLimits limits_;
+  CaptureInfo info_;
+  std::map<std::string, cv::Size, std::less<>> frame_sizes_;  // per camera
+};
+
+// Writes a bundle. Frames first; capture.json last (atomically), so a bundle
+// without capture.json is never mistaken for a whole one.
+//
+// The constructor validates `info` (std::invalid_argument), creates the
+// directory and removes a capture.json already there: the directory is being
+// rewritten, and must not pass for a whole bundle while old and new frames mix.
+// Every frame is written atomically. commit() requires every frame of every
+// camera to have been written through this writer (std::logic_error otherwise),
+// removes stale frame files of an earlier bundle (NN.png names the new angle
+// lists do not have, which readers would reject), then writes capture.json.
+class CaptureBundleWriter {
+ public:
+  CaptureBundleWriter(std::filesystem::path dir, CaptureInfo info);
+  // CV_8UC1 or CV_16UC1, one size per camera (std::invalid_argument otherwise).
+  void writeFrame(std::string_view camera, FringeSetId set, int k, const cv::Mat& frame);
+  void commit();  // writes capture.json
+
+ private:
+  struct CameraProgress {
+    cv::Size size;                             // of the first frame written
+    std::array<std::vector<bool>, 2> written;  // per set, per frame
+  };
+
+  std::filesystem::path dir_;
+  CaptureInfo info_;
+  std::map<std::string, CameraProgress, std::less<>> progress_;
+};
+
+// "NN" for frame k of a set of n frames: two digits, more when n >= 100 (as
+// many as n has). std::invalid_argument unless 0 <= k < n. The file is "NN.png".
+std::string frameFileName(int k, int n);
+
+inline constexpr std::string_view kCaptureFormat = "cylscan-capture-1";
+inline constexpr int kMinFramesPerSet = 3;
+
+}  // namespace cylscan::formats

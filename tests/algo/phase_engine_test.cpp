@@ -1,0 +1,476 @@
+#include "algo/phase_engine.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <numbers>
+#include <random>
+#include <string>
+
+#include "synthetic_fringes.hpp"
+
+namespace cylscan::algo {
+namespace {
+
+using testing::angleDifference;
+using testing::deviceHigh;
+using testing::deviceLow;
+using testing::kTwoPi;
+using testing::runScan;
+using testing::Scene;
+using testing::stepGeometry;
+
+// Most tests run on small images, to keep the suite fast.
+cv::Size smallSize() {
+  return {128, 96};
+}
+
+PhaseOptions fixedOptions(int bits = 8) {
+  PhaseOptions o;
+  o.bit_depth = bits;
+  return o;
+}
+PhaseOptions referenceOptions(int bits = 8) {
+  PhaseOptions o = fixedOptions(bits);
+  o.fixed_point = false;
+  return o;
+}
+
+struct ErrorStats {
+  double rms = 0, worst = 0;
+  int count = 0;
+};
+
+// Wrapped phase of `set` against the truth, over valid pixels of `maps`.
+ErrorStats wrappedError(const PhaseMaps& maps, const Scene& scene, FringeSet set) {
+  const cv::Mat& wrapped = set == FringeSet::High ? maps.wrapped_high : maps.wrapped_low;
+  const double scale = set == FringeSet::High ? 1.0 : testing::kHighPeriod / testing::kLowPeriod;
+  ErrorStats s;
+  double sum = 0;
+  for (int y = 0; y < wrapped.rows; ++y) {
+    for (int x = 0; x < wrapped.cols; ++x) {
+      if (maps.invalid.at<std::uint8_t>(y, x) != 0) continue;
+      const double e =
+          angleDifference(wrapped.at<float>(y, x), scene.absolute_high.at<double>(y, x) * scale);
+      sum += e * e;
+      s.worst = std::max(s.worst, std::abs(e));
+      ++s.count;
+    }
+  }
+  s.rms = s.count > 0 ? std::sqrt(sum / s.count) : 0;
+  return s;
+}
+
+// An absolute map (Φ or the fused Φ) against the truth, over valid pixels.
+ErrorStats absoluteError(const cv::Mat& absolute, const PhaseMaps& maps, const Scene& scene) {
+  ErrorStats s;
+  double sum = 0;
+  for (int y = 0; y < absolute.rows; ++y) {
+    for (int x = 0; x < absolute.cols; ++x) {
+      if (maps.invalid.at<std::uint8_t>(y, x) != 0) continue;
+      const double e = absolute.at<float>(y, x) - scene.absolute_high.at<double>(y, x);
+      sum += e * e;
+      s.worst = std::max(s.worst, std::abs(e));
+      ++s.count;
+    }
+  }
+  s.rms = s.count > 0 ? std::sqrt(sum / s.count) : 0;
+  return s;
+}
+
+bool bitIdentical(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int y = 0; y < a.rows; ++y) {
+    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0) return false;
+  }
+  return true;
+}
+
+void expectIdenticalMaps(const PhaseMaps& a, const PhaseMaps& b) {
+  EXPECT_TRUE(bitIdentical(a.wrapped_high, b.wrapped_high));
+  EXPECT_TRUE(bitIdentical(a.wrapped_low, b.wrapped_low));
+  EXPECT_TRUE(bitIdentical(a.modulation_high, b.modulation_high));
+  EXPECT_TRUE(bitIdentical(a.modulation_low, b.modulation_low));
+  EXPECT_TRUE(bitIdentical(a.texture, b.texture));
+  EXPECT_TRUE(bitIdentical(a.fringe_order, b.fringe_order));
+  EXPECT_TRUE(bitIdentical(a.absolute, b.absolute));
+  EXPECT_TRUE(bitIdentical(a.fused, b.fused));
+  EXPECT_TRUE(bitIdentical(a.invalid, b.invalid));
+  EXPECT_EQ(a.valid_fraction, b.valid_fraction);
+}
+
+int expectedOrder(double truth) {
+  return static_cast<int>(std::floor(truth / kTwoPi));
+}
+
+// ---- phase recovery ----------------------------------------------------------
+
+struct GeometryCase {
+  const char* name;
+  FringeSetGeometry high, low;
+};
+
+TEST(PhaseEngine, RecoversPhaseForEvenQuantisedAndPartialShifts) {
+  const GeometryCase cases[] = {
+      {"even", stepGeometry(5.0, 25), stepGeometry(5.625, 25)},
+      {"quantised 0.004 deg steps", deviceHigh(), deviceLow()},
+      {"60 % of a period", stepGeometry(5.0, 25, -90, 0.6, 0.004),
+       stepGeometry(5.625, 25, 87, 0.6, 0.004)},
+      {"uneven N (12 and 7 frames)", stepGeometry(5.0, 12, 0, 1.0, 0.004),
+       stepGeometry(5.625, 7, 0, 1.0, 0.004)},
+  };
+  const Scene scene = testing::rampScene(smallSize(), 120, 90);
+  for (const GeometryCase& c : cases) {
+    PhaseEngine engine(smallSize(), c.high, c.low, fixedOptions());
+    const double gain = engine.noiseGain(FringeSet::High);
+    // Rounding to integers is noise of 1/sqrt(12) counts: σφ = σ·sqrt(gain)/B.
+    const double expected_rms = std::sqrt(1.0 / 12) * std::sqrt(gain) / 90;
+    for (bool fixed : {true, false}) {
+      const PhaseMaps maps =
+          runScan(scene, c.high, c.low, fixed ? fixedOptions() : referenceOptions());
+      const ErrorStats e = wrappedError(maps, scene, FringeSet::High);
+      const ErrorStats a = absoluteError(maps.absolute, maps, scene);
+      std::printf(
+          "%-28s %-9s cond %.2f/%.2f  wrapped rms %.2e (theory %.2e) max %.2e  valid %.4f\n",
+          c.name, fixed ? "fixed" : "reference", engine.conditionNumber(FringeSet::High),
+          engine.conditionNumber(FringeSet::Low), e.rms, expected_rms, e.worst,
+          maps.valid_fraction);
+      EXPECT_EQ(maps.valid_fraction, 1.0) << c.name;
+      EXPECT_LT(e.rms, 1.5 * expected_rms + 1e-4) << c.name;
+      EXPECT_LT(a.worst, 8 * expected_rms + 5e-4) << c.name;  // no order is wrong anywhere
+    }
+  }
+}
+
+TEST(PhaseEngine, BitDepths8And12And16) {
+  for (int bits : {8, 12, 16}) {
+    const double full = (1 << bits) - 1;
+    const Scene scene = testing::rampScene(smallSize(), 0.45 * full, 0.35 * full);
+    for (bool fixed : {true, false}) {
+      PhaseOptions o = fixed ? fixedOptions(bits) : referenceOptions(bits);
+      const PhaseMaps maps = runScan(scene, deviceHigh(), deviceLow(), o);
+      const ErrorStats e = wrappedError(maps, scene, FringeSet::High);
+      const ErrorStats el = wrappedError(maps, scene, FringeSet::Low);
+      // Rounding noise only: σφ = 0.29·sqrt(2/25)/B, plus the fixed-point floor: the
+      // binary angle (LSB/sqrt(12) = 2.8e-5), the atan polynomial (< 0.5 LSB) and, at 16
+      // bits, the weight quantisation (1/cs_scale ≈ 4e-5 rad): about 5e-5 rad RMS.
+      const double expected = std::sqrt(1.0 / 12) * std::sqrt(2.0 / 25) / (0.35 * full);
+      EXPECT_EQ(maps.valid_fraction, 1.0);
+      EXPECT_LT(e.rms, 1.5 * expected + 8e-5) << bits << (fixed ? " fixed" : " reference");
+      EXPECT_LT(el.rms, 1.5 * expected + 8e-5) << bits << (fixed ? " fixed" : " reference");
+      // Modulation and texture in counts.
+      EXPECT_NEAR(cv::mean(maps.modulation_high)[0], 0.35 * full, 0.002 * full + 0.1);
+      EXPECT_NEAR(cv::mean(maps.modulation_low)[0], 0.35 * full, 0.002 * full + 0.1);
+      EXPECT_NEAR(cv::mean(maps.texture)[0], 0.45 * full, 0.002 * full + 0.1);
+    }
+  }
+}
+
+TEST(PhaseEngine, PhaseNoiseFollowsTheory) {
+  // σφ ≈ σI·sqrt(2/N)/B for N even shifts.
+  const double a = 30000, b = 20000, sigma = 300;
+  const Scene scene = testing::rampScene(smallSize(), a, b);
+  const double theory = sigma * std::sqrt(2.0 / 25) / b;
+  for (bool fixed : {true, false}) {
+    const PhaseMaps maps = runScan(scene, stepGeometry(5.0, 25), stepGeometry(5.625, 25),
+                                   fixed ? fixedOptions(16) : referenceOptions(16), sigma, 3);
+    const ErrorStats e = wrappedError(maps, scene, FringeSet::High);
+    std::printf("%s: phase noise %.3e rad, theory %.3e (ratio %.3f)\n",
+                fixed ? "fixed" : "reference", e.rms, theory, e.rms / theory);
+    // 12288 samples: the RMS estimate is good to about 1 %.
+    EXPECT_NEAR(e.rms / theory, 1.0, 0.06);
+  }
+}
+
+// ---- agreement of the two paths ------------------------------------------------
+
+TEST(PhaseEngine, FixedPointAgreesWithDoubleReference) {
+  const Scene scene = testing::rampScene(smallSize(), 110, 70);
+  double worst = 0, sum = 0;
+  int count = 0, order_mismatch = 0, flag_mismatch = 0;
+  for (int seed : {1, 2}) {
+    const PhaseMaps fixed = runScan(scene, deviceHigh(), deviceLow(), fixedOptions(), 1.5, seed);
+    const PhaseMaps ref = runScan(scene, deviceHigh(), deviceLow(), referenceOptions(), 1.5, seed);
+    for (int y = 0; y < smallSize().height; ++y) {
+      for (int x = 0; x < smallSize().width; ++x) {
+        const bool ref_valid = ref.invalid.at<std::uint8_t>(y, x) == 0;
+        flag_mismatch += ref.invalid.at<std::uint8_t>(y, x) != fixed.invalid.at<std::uint8_t>(y, x);
+        if (!ref_valid) continue;
+        for (const cv::Mat PhaseMaps::*m : {&PhaseMaps::wrapped_high, &PhaseMaps::wrapped_low}) {
+          const double e = angleDifference((fixed.*m).at<float>(y, x), (ref.*m).at<float>(y, x));
+          worst = std::max(worst, std::abs(e));
+          sum += e * e;
+          ++count;
+        }
+        order_mismatch +=
+            fixed.fringe_order.at<std::int16_t>(y, x) != ref.fringe_order.at<std::int16_t>(y, x);
+      }
+    }
+  }
+  const double rms = std::sqrt(sum / count);
+  std::printf(
+      "fixed vs double: wrapped rms %.3e rad, max %.3e rad over %d phases; %d order "
+      "mismatches; %d flag mismatches\n",
+      rms, worst, count, order_mismatch, flag_mismatch);
+  EXPECT_LT(rms, 1e-3);
+  EXPECT_LT(worst, 4e-3);
+  EXPECT_EQ(order_mismatch, 0);
+  EXPECT_LE(flag_mismatch, count / 1000);
+}
+
+// ---- fringe orders with isolated objects ----------------------------------------
+
+TEST(PhaseEngine, LargeDepthStepsGetTheRightOrderAtEveryPixel) {
+  // 4x4-pixel blocks with independent random Φ over all 9 orders: steps of several
+  // periods between neighbouring pixels, as at the edges of isolated objects.
+  Scene scene = testing::uniformScene(smallSize(), 110, 90);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> phase(0.02, 9 * kTwoPi - 0.02);
+  for (int y = 0; y < smallSize().height; y += 4) {
+    for (int x = 0; x < smallSize().width; x += 4) {
+      scene.absolute_high(cv::Rect(x, y, 4, 4)).setTo(phase(rng));
+    }
+  }
+  double biggest_step = 0;
+  std::vector<int> seen(9, 0);
+  for (int y = 0; y < smallSize().height; ++y) {
+    for (int x = 1; x < smallSize().width; ++x) {
+      biggest_step = std::max(biggest_step, std::abs(scene.absolute_high.at<double>(y, x) -
+                                                     scene.absolute_high.at<double>(y, x - 1)));
+      ++seen[expectedOrder(scene.absolute_high.at<double>(y, x))];
+    }
+  }
+  ASSERT_GT(biggest_step, 6 * kTwoPi);
+  for (int k = 0; k < 9; ++k)
+    ASSERT_GT(seen[k], 0) << k;
+
+  for (bool fixed : {true, false}) {
+    const PhaseMaps maps = runScan(scene, deviceHigh(), deviceLow(),
+                                   fixed ? fixedOptions() : referenceOptions(), 0.7, 9);
+    int wrong = 0;
+    for (int y = 0; y < smallSize().height; ++y) {
+      for (int x = 0; x < smallSize().width; ++x) {
+        const double truth = scene.absolute_high.at<double>(y, x);
+        ASSERT_EQ(maps.invalid.at<std::uint8_t>(y, x), 0) << x << "," << y;
+        const double err = maps.absolute.at<float>(y, x) - truth;
+        wrong += std::abs(err) > 0.05;
+        const double to_edge = std::abs(std::remainder(truth, kTwoPi));
+        if (to_edge > 0.05) {
+          wrong += maps.fringe_order.at<std::int16_t>(y, x) != expectedOrder(truth);
+        }
+      }
+    }
+    EXPECT_EQ(wrong, 0) << (fixed ? "fixed" : "reference");
+  }
+}
+
+// ---- validity flags ---------------------------------------------------------------
+
+TEST(PhaseEngine, FlagsLowModulationSaturationAndInconsistentOrders) {
+  // Columns: [0,32) dark (B = 2 < 5.1), [32,64) low phase corrupted by 0.3 rad
+  // (residual 9·0.3 = 2.7 rad > π/2), [64,96) saturated (A + B = 300), [96,128) fine.
+  Scene scene = testing::rampScene(smallSize(), 110, 80);
+  scene.modulation.colRange(0, 32).setTo(2.0);
+  scene.low_offset = cv::Mat::zeros(smallSize(), CV_64F);
+  scene.low_offset.colRange(32, 64).setTo(0.3);
+  scene.background.colRange(64, 96).setTo(200.0);
+  scene.modulation.colRange(64, 96).setTo(100.0);
+  for (bool fixed : {true, false}) {
+    const PhaseMaps maps =
+        runScan(scene, deviceHigh(), deviceLow(), fixed ? fixedOptions() : referenceOptions(), 0.5);
+    for (int y = 0; y < smallSize().height; ++y) {
+      for (int x = 0; x < smallSize().width; ++x) {
+        const std::uint8_t flags = maps.invalid.at<std::uint8_t>(y, x);
+        const int region = x / 32;
+        if (region == 0) {
+          ASSERT_TRUE(flags & kLowModulation) << x << "," << y;
+        }
+        if (region == 1) {
+          ASSERT_EQ(flags, kOrderInconsistent) << x << "," << y;
+        }
+        if (region == 2) {
+          ASSERT_TRUE(flags & kSaturated) << x << "," << y;
+        }
+        if (region == 3) {
+          ASSERT_EQ(flags, kValid) << x << "," << y;
+        }
+        if (region != 0) {
+          ASSERT_FALSE(flags & kLowModulation) << x << "," << y;
+        }
+        if (region != 2) {
+          ASSERT_FALSE(flags & kSaturated) << x << "," << y;
+        }
+        ASSERT_EQ(std::isnan(maps.absolute.at<float>(y, x)), flags != 0);
+        ASSERT_EQ(std::isnan(maps.fused.at<float>(y, x)), flags != 0);
+      }
+    }
+    EXPECT_NEAR(maps.valid_fraction, 0.25, 1e-12);
+  }
+}
+
+TEST(PhaseEngine, SaturationLevelOptionIsHonoured) {
+  // 16-bit frames holding 12-bit counts with a lower saturation level.
+  const Scene scene = testing::rampScene(smallSize(), 2000, 1500);  // peaks at 3500
+  PhaseOptions o = fixedOptions(12);
+  o.saturation_level = 3400;
+  EXPECT_EQ(runScan(scene, deviceHigh(), deviceLow(), o).valid_fraction, 0.0);
+  o.saturation_level = 3600;
+  EXPECT_EQ(runScan(scene, deviceHigh(), deviceLow(), o).valid_fraction, 1.0);
+}
+
+// ---- dual-set fusion ---------------------------------------------------------------
+
+TEST(PhaseEngine, FusionLowersPhaseNoise) {
+  const double a = 30000, b = 20000, sigma = 400;
+  const Scene scene = testing::rampScene(cv::Size(160, 120), a, b);
+  for (bool fixed : {true, false}) {
+    PhaseEngine engine(scene.absolute_high.size(), stepGeometry(5.0, 25), stepGeometry(5.625, 25),
+                       fixed ? fixedOptions(16) : referenceOptions(16));
+    const PhaseMaps maps = runScan(scene, stepGeometry(5.0, 25), stepGeometry(5.625, 25),
+                                   fixed ? fixedOptions(16) : referenceOptions(16), sigma, 21);
+    const ErrorStats high = absoluteError(maps.absolute, maps, scene);
+    const ErrorStats fused = absoluteError(maps.fused, maps, scene);
+    const double rho = testing::kLowPeriod / testing::kHighPeriod;
+    const double gamma =
+        engine.noiseGain(FringeSet::High) / (engine.noiseGain(FringeSet::Low) * rho * rho);
+    const double theory = 1 - 1 / std::sqrt(1 + gamma);
+    const double measured = 1 - fused.rms / high.rms;
+    std::printf("%s: Φh rms %.3e, fused rms %.3e rad: %.1f %% lower (theory %.1f %%)\n",
+                fixed ? "fixed" : "reference", high.rms, fused.rms, 100 * measured, 100 * theory);
+    EXPECT_EQ(maps.valid_fraction, 1.0);
+    // Theory says 25.3 %; 19200 samples give the ratio to about 1 %. Ask for >= 15 %.
+    EXPECT_GE(measured, 0.15);
+    EXPECT_NEAR(measured, theory, 0.04);
+  }
+}
+
+// ---- engine contract ------------------------------------------------------------
+
+TEST(PhaseEngine, WorkingStateIsAtMost16BytesPerPixel) {
+  PhaseEngine fixed(smallSize(), deviceHigh(), deviceLow(), fixedOptions());
+  EXPECT_LE(fixed.workingStateBytes(), 16u * smallSize().area());
+  EXPECT_GT(fixed.workingStateBytes(), 0u);
+  PhaseEngine ref(smallSize(), deviceHigh(), deviceLow(), referenceOptions());
+  std::printf("working state: fixed %.1f, reference %.1f bytes/pixel\n",
+              static_cast<double>(fixed.workingStateBytes()) / smallSize().area(),
+              static_cast<double>(ref.workingStateBytes()) / smallSize().area());
+}
+
+TEST(PhaseEngine, KernelBuildsAndSetOrderGiveIdenticalBits) {
+  const cv::Size size(320, 240);
+  const Scene scene = testing::rampScene(size, 120, 60);
+  PhaseOptions baseline = fixedOptions();
+  baseline.kernel_isa = KernelIsa::kBaseline;
+  const PhaseMaps a = runScan(scene, deviceHigh(), deviceLow(), baseline, 2.0, 4);
+  const PhaseMaps low_first = runScan(scene, deviceHigh(), deviceLow(), baseline, 2.0, 4, true);
+  // Same noise draws in a different order of sets differ, so compare noise-free for order.
+  const PhaseMaps c = runScan(scene, deviceHigh(), deviceLow(), baseline, 0, 4, false);
+  const PhaseMaps d = runScan(scene, deviceHigh(), deviceLow(), baseline, 0, 4, true);
+  expectIdenticalMaps(c, d);
+  EXPECT_GT(low_first.valid_fraction, 0.99);
+  int compared = 0;
+  for (KernelIsa isa : {KernelIsa::kAvx2, KernelIsa::kAvx512}) {
+    if (resolveKernelIsa(isa) != isa) continue;  // not on this CPU
+    PhaseOptions wide = fixedOptions();
+    wide.kernel_isa = isa;
+    expectIdenticalMaps(a, runScan(scene, deviceHigh(), deviceLow(), wide, 2.0, 4));
+    ++compared;
+  }
+  if (compared == 0) GTEST_SKIP() << "only the baseline kernels run on this CPU";
+}
+
+TEST(PhaseEngine, FinalizeIsRepeatableAndResetStartsOver) {
+  const Scene scene = testing::rampScene(smallSize(), 120, 60);
+  PhaseEngine engine(smallSize(), deviceHigh(), deviceLow(), fixedOptions());
+  testing::FringeRenderer renderer(scene, 8, 0, 1);
+  const auto fold_all = [&] {
+    for (int k = 0; k < 25; ++k)
+      engine.fold(FringeSet::Low, k, renderer.render(FringeSet::Low, deviceLow(), k));
+    for (int k = 24; k >= 0; --k)
+      engine.fold(FringeSet::High, k, renderer.render(FringeSet::High, deviceHigh(), k));
+  };
+  fold_all();
+  const PhaseMaps first = engine.finalize();
+  PhaseMaps again;
+  engine.finalize(again);
+  expectIdenticalMaps(first, again);
+  engine.reset();
+  EXPECT_THROW(engine.finalize(), std::logic_error);
+  fold_all();
+  expectIdenticalMaps(first, engine.finalize());
+}
+
+template <typename Exception>
+void expectThrowWith(const std::function<void()>& f, const std::string& fragment) {
+  try {
+    f();
+    FAIL() << "no exception; expected one mentioning '" << fragment << "'";
+  } catch (const Exception& e) {
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+
+TEST(PhaseEngine, RejectsBadFramesNamingTheFault) {
+  PhaseEngine engine(smallSize(), deviceHigh(), deviceLow(), fixedOptions());
+  const cv::Mat good(smallSize(), CV_8UC1, cv::Scalar(100));
+  using IA = std::invalid_argument;
+  expectThrowWith<IA>([&] { engine.fold(FringeSet::High, 0, cv::Mat(smallSize(), CV_32FC1)); },
+                      "32F");
+  expectThrowWith<IA>([&] { engine.fold(FringeSet::High, 0, cv::Mat(smallSize(), CV_8UC3)); },
+                      "8UC3");
+  expectThrowWith<IA>([&] { engine.fold(FringeSet::High, 0, cv::Mat(50, 40, CV_8UC1)); }, "40x50");
+  expectThrowWith<IA>([&] { engine.fold(FringeSet::High, 0, cv::Mat()); }, "empty");
+  expectThrowWith<IA>([&] { engine.fold(FringeSet::High, 0, cv::Mat(smallSize(), CV_16UC1)); },
+                      "16-bit");
+  expectThrowWith<std::out_of_range>([&] { engine.fold(FringeSet::Low, 25, good); }, "k = 0..24");
+  expectThrowWith<std::out_of_range>([&] { engine.fold(FringeSet::Low, -1, good); }, "low");
+  engine.fold(FringeSet::High, 3, good);
+  expectThrowWith<std::logic_error>([&] { engine.fold(FringeSet::High, 3, good); },
+                                    "already folded");
+  expectThrowWith<std::logic_error>([&] { engine.fold(FringeSet::Low, 0, good); },
+                                    "1 of 25 frames");
+  expectThrowWith<std::logic_error>([&] { (void)engine.finalize(); }, "high 1 of 25");
+  // A non-continuous (ROI) frame is fine.
+  cv::Mat big(smallSize().height + 2, smallSize().width + 2, CV_8UC1, cv::Scalar(100));
+  EXPECT_NO_THROW(
+      engine.fold(FringeSet::High, 4, big(cv::Rect(1, 1, smallSize().width, smallSize().height))));
+
+  PhaseEngine deep(smallSize(), deviceHigh(), deviceLow(), fixedOptions(12));
+  expectThrowWith<IA>([&] { deep.fold(FringeSet::High, 0, good); }, "8-bit");
+}
+
+TEST(PhaseEngine, RejectsBadOptionsPeriodsAndShifts) {
+  using IA = std::invalid_argument;
+  const auto make = [](FringeSetGeometry h, FringeSetGeometry l, PhaseOptions o) {
+    PhaseEngine e(smallSize(), std::move(h), std::move(l), o);
+  };
+  PhaseOptions o;
+  o.bit_depth = 7;
+  expectThrowWith<IA>([&] { make(deviceHigh(), deviceLow(), o); }, "bit_depth");
+  o = {};
+  o.saturation_level = 300;
+  expectThrowWith<IA>([&] { make(deviceHigh(), deviceLow(), o); }, "saturation_level");
+  o = {};
+  o.max_order_error_rad = 4;
+  expectThrowWith<IA>([&] { make(deviceHigh(), deviceLow(), o); }, "max_order_error_rad");
+  expectThrowWith<IA>([&] { PhaseEngine e(cv::Size(0, 5), deviceHigh(), deviceLow()); }, "empty");
+  // Swapped periods: high must be the shorter one.
+  expectThrowWith<IA>([&] { make(stepGeometry(5.625, 25), stepGeometry(5.0, 25), {}); },
+                      "high period < low");
+  expectThrowWith<ShiftSolveError>([&] { make({5.0, {1, 1, 1}}, deviceLow(), {}); }, "high");
+  expectThrowWith<ShiftSolveError>(
+      [&] {
+        make(deviceHigh(), {5.625, {0, 2.8125, 5.625}}, {});
+      },
+      "low");
+  // Defaults are resolved and reported.
+  PhaseEngine e(smallSize(), deviceHigh(), deviceLow(), fixedOptions(12));
+  EXPECT_EQ(e.options().saturation_level, 4095);
+  EXPECT_NEAR(e.options().min_modulation, 0.02 * 4095, 1e-9);
+  EXPECT_NEAR(e.options().max_order_error_rad, std::numbers::pi / 2, 1e-15);
+}
+
+}  // namespace
+}  // namespace cylscan::algo

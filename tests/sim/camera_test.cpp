@@ -1,0 +1,181 @@
+// The virtual cameras behind drivers::Camera: triggers, exposure at the stage
+// angle of the moment, sequence numbers, software trigger, timeouts and the
+// fault-injection hooks.
+#include <gtest/gtest.h>
+
+#include "sim_test_support.hpp"
+
+namespace cylscan::sim {
+namespace {
+
+using namespace std::chrono_literals;
+using test::LineDriver;
+
+bool same(const cv::Mat& a, const cv::Mat& b) {
+  return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0;
+}
+
+class CameraTest : public ::testing::Test {
+ protected:
+  CameraTest()
+      : head(test::smallHead(), test::planeScene()), lines(head), cam(head.camera("main")) {
+    drivers::CameraConfig config;
+    config.trigger = drivers::TriggerMode::GpioPulse;
+    cam.configure(config);
+    cam.start();
+  }
+  drivers::Frame shoot() {
+    lines.pulseTrigger();
+    auto f = cam.waitFrame(5s);
+    EXPECT_TRUE(f);
+    return f ? *f : drivers::Frame{};
+  }
+  VirtualHead head;
+  LineDriver lines;
+  drivers::Camera& cam;
+};
+
+TEST_F(CameraTest, TriggerGivesAFrameWithSequenceAndTimestamp) {
+  head.clock().sleepUntil(100ms);
+  const auto t = head.clock().now();
+  const drivers::Frame f = shoot();
+  EXPECT_EQ(f.sequence, 0u);
+  EXPECT_EQ(f.timestamp, t + 20us);  // the trigger latency
+  EXPECT_EQ(f.image.size(), cv::Size(200, 160));
+  EXPECT_EQ(f.image.type(), CV_8UC1);
+  EXPECT_GE(head.clock().now(), f.timestamp + 10ms + 8ms);  // exposure + readout
+  EXPECT_EQ(shoot().sequence, 1u);
+}
+
+TEST_F(CameraTest, TheFrameShowsTheStageAngleOfTheTrigger) {
+  const drivers::Frame at0 = shoot();
+  lines.move(50);  // 0.2°: a fifth of... a 25th of a period
+  const drivers::Frame at50 = shoot();
+  EXPECT_FALSE(same(at0.image, at50.image));
+  lines.move(-50);
+  // Trigger at the first angle, move once the exposure is over, then read.
+  lines.pulseTrigger();
+  head.clock().sleepUntil(head.clock().now() + 11ms);
+  lines.move(50);
+  const auto late = cam.waitFrame(1s);
+  ASSERT_TRUE(late);
+  EXPECT_TRUE(same(late->image, at0.image));
+}
+
+TEST_F(CameraTest, LightOffLeavesOnlyAmbient) {
+  const drivers::Frame lit = shoot();
+  lines.light->set(false);
+  const drivers::Frame dark = shoot();
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(dark.image, &lo, &hi);
+  EXPECT_LE(hi - lo, 1.0);  // uniform plane, no fringes
+  EXPECT_GT(cv::mean(lit.image)[0], 5 * cv::mean(dark.image)[0]);
+}
+
+TEST_F(CameraTest, TimeoutAdvancesVirtualTime) {
+  const auto t = head.clock().now();
+  EXPECT_FALSE(cam.waitFrame(50ms));
+  EXPECT_EQ(head.clock().now() - t, 50ms);
+}
+
+TEST_F(CameraTest, SoftwareTrigger) {
+  EXPECT_THROW(cam.requestFrame(), drivers::CameraError);
+  cam.stop();
+  drivers::CameraConfig config;
+  config.trigger = drivers::TriggerMode::Software;
+  config.bit_depth = 12;
+  cam.configure(config);
+  cam.start();
+  lines.pulseTrigger();  // ignored in software mode
+  EXPECT_FALSE(cam.waitFrame(30ms));
+  cam.requestFrame();
+  const auto f = cam.waitFrame(1s);
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->image.type(), CV_16UC1);
+  double hi = 0;
+  cv::minMaxLoc(f->image, nullptr, &hi);
+  EXPECT_GT(hi, 1000);  // 12-bit counts, unscaled
+  EXPECT_LE(hi, 4095);
+}
+
+TEST_F(CameraTest, FreeRunningStreams) {
+  cam.stop();
+  drivers::CameraConfig config;
+  config.trigger = drivers::TriggerMode::FreeRunning;
+  cam.configure(config);
+  cam.start();
+  const auto a = cam.waitFrame(1s), b = cam.waitFrame(1s);
+  ASSERT_TRUE(a && b);
+  EXPECT_EQ(b->sequence, a->sequence + 1);
+  EXPECT_NEAR(static_cast<double>((b->timestamp - a->timestamp).count()), 1e9 / 30, 1e3);
+}
+
+TEST_F(CameraTest, ConfigurationIsChecked) {
+  cam.stop();
+  drivers::CameraConfig config;
+  config.width = 640;
+  config.height = 480;
+  EXPECT_THROW(cam.configure(config), drivers::CameraError);
+  config = {};
+  config.bit_depth = 9;
+  EXPECT_THROW(cam.configure(config), drivers::CameraError);
+  cam.start();
+  EXPECT_THROW(cam.configure({}), drivers::CameraError);
+}
+
+TEST_F(CameraTest, DroppedFrameLeavesASequenceGap) {
+  head.dropFrames("main", 1);
+  lines.pulseTrigger();
+  head.clock().sleepUntil(head.clock().now() + 20ms);
+  lines.pulseTrigger();
+  const auto f = cam.waitFrame(1s);
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->sequence, 1u);
+  EXPECT_FALSE(cam.waitFrame(100ms));
+}
+
+TEST_F(CameraTest, DelayedFrameTimesOutThenArrives) {
+  head.delayNextFrame("main", 200ms);
+  lines.pulseTrigger();
+  EXPECT_FALSE(cam.waitFrame(100ms));
+  EXPECT_TRUE(cam.waitFrame(200ms));
+}
+
+TEST_F(CameraTest, CorruptedFrameDiffers) {
+  const drivers::Frame good = shoot();
+  head.corruptNextFrame("main");
+  const drivers::Frame bad = shoot();
+  EXPECT_FALSE(same(good.image, bad.image));
+  EXPECT_TRUE(same(good.image.rowRange(0, 80), bad.image.rowRange(0, 80)));
+}
+
+TEST_F(CameraTest, TriggerDuringExposureIsMissed) {
+  lines.pulseTrigger();
+  head.clock().sleepUntil(head.clock().now() + 1ms);
+  lines.pulseTrigger();
+  EXPECT_TRUE(cam.waitFrame(1s));
+  EXPECT_FALSE(cam.waitFrame(100ms));
+  EXPECT_EQ(head.missedTriggers("main"), 1u);
+}
+
+TEST_F(CameraTest, ExposureWhileMovingAveragesThePattern) {
+  cam.stop();
+  drivers::CameraConfig config;
+  config.exposure_us = 1375000;  // 1.375 s while the stage turns 5°: one whole period
+  config.gain = 1.0 / 137.5;     // the same counts as 10 ms at gain 1
+  cam.configure(config);
+  cam.start();
+  const drivers::Frame still = shoot();
+  lines.pulseTrigger();
+  lines.pulses(1250, 1100us);  // 909 steps/s (below the start rate) for 1.375 s
+  const auto moving = cam.waitFrame(3s);
+  ASSERT_TRUE(moving);
+  double lo_s = 0, hi_s = 0, lo_m = 0, hi_m = 0;
+  cv::minMaxLoc(still.image.row(80), &lo_s, &hi_s);
+  cv::minMaxLoc(moving->image.row(80), &lo_m, &hi_m);
+  EXPECT_LT(hi_m - lo_m, 0.2 * (hi_s - lo_s));                             // the fringes wash out
+  EXPECT_NEAR((hi_m + lo_m) / 2, (hi_s + lo_s) / 2, 0.1 * (hi_s - lo_s));  // at the mean level
+}
+
+}  // namespace
+}  // namespace cylscan::sim

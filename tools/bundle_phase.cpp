@@ -1,0 +1,111 @@
+#include "tools/bundle_phase.hpp"
+
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+
+#include "formats/input_error.hpp"
+#include "tools/stopwatch.hpp"
+
+namespace cylscan::tools {
+namespace {
+
+namespace fs = std::filesystem;
+
+algo::FringeSet toAlgo(formats::FringeSetId id) {
+  return id == formats::FringeSetId::High ? algo::FringeSet::High : algo::FringeSet::Low;
+}
+
+algo::FringeSetGeometry geometryOf(const formats::FringeSetInfo& set) {
+  return {set.period_deg, set.stage_deg};
+}
+
+// The significant bits of the frames: 8 for 8-bit PNG; for 16-bit PNG the
+// option when given, else the writer's `bit_depth` field (12-bit sensors store
+// counts unscaled), else 16.
+int bitDepthOf(const formats::CaptureBundleReader& bundle, const cv::Mat& first, int option) {
+  if (first.depth() == CV_8U) return 8;
+  if (option > 0) return option;
+  const auto& extra = bundle.info().extra;
+  if (auto it = extra.find("bit_depth"); it != extra.end()) {
+    if (!it->is_number_integer() || it->get<int>() < 9 || it->get<int>() > 16) {
+      throw formats::InputError(bundle.dir() / "capture.json",
+                                "bit_depth must be an integer from 9 to 16 for 16-bit frames");
+    }
+    return it->get<int>();
+  }
+  return 16;
+}
+
+algo::PhaseEngine makeEngine(const formats::CaptureBundleReader& bundle, cv::Size size,
+                             const algo::PhaseOptions& options) {
+  try {
+    return algo::PhaseEngine(size, geometryOf(bundle.info().high), geometryOf(bundle.info().low),
+                             options);
+  } catch (const std::invalid_argument& e) {  // includes ShiftSolveError
+    throw formats::InputError(bundle.dir() / "capture.json", e.what());
+  }
+}
+
+}  // namespace
+
+PhaseChoice parsePhaseChoice(const std::string& name) {
+  if (name == "high") return PhaseChoice::kHigh;
+  if (name == "fused") return PhaseChoice::kFused;
+  throw std::invalid_argument("--phase must be 'high' or 'fused', not '" + name + "'");
+}
+
+std::string toString(PhaseChoice choice) {
+  return choice == PhaseChoice::kHigh ? "high" : "fused";
+}
+
+const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseChoice choice) {
+  return choice == PhaseChoice::kHigh ? maps.absolute : maps.fused;
+}
+
+void requireCamera(const formats::CaptureBundleReader& bundle, const std::string& camera) {
+  if (!bundle.hasCamera(camera)) {
+    throw formats::InputError(bundle.dir() / "capture.json",
+                              "no camera '" + camera + "' in cameras");
+  }
+}
+
+BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
+                               const std::string& camera, const BundlePhaseOptions& options) {
+  requireCamera(bundle, camera);
+  BundlePhase out;
+  Stopwatch watch;
+  const cv::Mat first = bundle.readFrame(camera, formats::FringeSetId::High, 0);
+  out.read_ms += watch.lapMs();
+  out.size = first.size();
+
+  algo::PhaseOptions engine_options;
+  engine_options.bit_depth = bitDepthOf(bundle, first, options.bit_depth);
+  engine_options.min_modulation = options.min_modulation;
+  engine_options.fixed_point = !options.reference;
+  out.bit_depth = engine_options.bit_depth;
+  algo::PhaseEngine engine = makeEngine(bundle, out.size, engine_options);
+
+  // Streaming: each frame is folded in as soon as it is read; none is kept.
+  for (const auto set : formats::kFringeSets) {
+    const int n = bundle.frameCount(set);
+    for (int k = 0; k < n; ++k) {
+      watch.lapMs();
+      const bool reuse_first = set == formats::FringeSetId::High && k == 0;
+      const cv::Mat frame = reuse_first ? first : bundle.readFrame(camera, set, k);
+      out.read_ms += watch.lapMs();
+      try {
+        engine.fold(toAlgo(set), k, frame);
+      } catch (const std::invalid_argument& e) {
+        throw formats::InputError(bundle.framePath(camera, set, k), e.what());
+      }
+      out.fold_ms += watch.lapMs();
+    }
+  }
+  watch.lapMs();
+  out.maps = engine.finalize();
+  out.finalize_ms = watch.lapMs();
+  return out;
+}
+
+}  // namespace cylscan::tools

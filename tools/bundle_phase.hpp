@@ -1,0 +1,47 @@
+// Shared by the subcommands: the phase engine run over one camera of a capture
+// bundle, frames streamed from disk one at a time (none is kept).
+#pragma once
+
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "algo/phase_engine.hpp"
+#include "formats/capture_bundle.hpp"
+
+namespace cylscan::tools {
+
+struct BundlePhaseOptions {
+  int bit_depth = 0;           // 16-bit frames: 0 = capture.json bit_depth, else 16
+  double min_modulation = -1;  // counts; -1 = the engine's default
+  bool reference = false;      // the double reference path instead of fixed point
+};
+
+struct BundlePhase {
+  algo::PhaseMaps maps;
+  cv::Size size;
+  int bit_depth = 8;  // as resolved for the frames
+  double read_ms = 0;
+  double fold_ms = 0;
+  double finalize_ms = 0;
+};
+
+// Which absolute phase a command works on: Φ of the high set, or the fused one.
+enum class PhaseChoice { kHigh, kFused };
+
+// "high" / "fused"; std::invalid_argument otherwise.
+PhaseChoice parsePhaseChoice(const std::string& name);
+std::string toString(PhaseChoice choice);
+// The map of `maps` for the choice (CV_32F, NaN where invalid); shares the data.
+const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseChoice choice);
+
+// Runs the engine over all frames of `camera`. InputError naming capture.json
+// when the camera is missing or the angles are unusable, naming the frame when
+// a frame is bad.
+BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
+                               const std::string& camera, const BundlePhaseOptions& options = {});
+
+// InputError naming capture.json unless the bundle has `camera`.
+void requireCamera(const formats::CaptureBundleReader& bundle, const std::string& camera);
+
+}  // namespace cylscan::tools

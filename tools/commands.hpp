@@ -1,0 +1,15 @@
+// Subcommands of the `cylscan` program, one file each.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace cylscan::tools {
+
+void addPhaseCommand(CLI::App& app);
+void addSimulateCommand(CLI::App& app);
+void addCalibrateStereoCommand(CLI::App& app);
+void addCalibrateCommand(CLI::App& app);
+void addReconstructCommand(CLI::App& app);
+void addEvaluateCommand(CLI::App& app);
+
+}  // namespace cylscan::tools

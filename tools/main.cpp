@@ -1,0 +1,37 @@
+// cylscan: calibration, simulation and offline reconstruction (spec §5).
+#include <cstdio>
+#include <exception>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "formats/input_error.hpp"
+#include "tools/commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"cylscan: firmware tools of the cylindrical fringe-projection scanning head"};
+  app.set_version_flag("--version", CYLSCAN_VERSION);
+  app.require_subcommand(1);
+  cylscan::tools::addPhaseCommand(app);
+  cylscan::tools::addSimulateCommand(app);
+  cylscan::tools::addCalibrateStereoCommand(app);
+  cylscan::tools::addCalibrateCommand(app);
+  cylscan::tools::addReconstructCommand(app);
+  cylscan::tools::addEvaluateCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;  // usage errors are bad input
+  } catch (const cylscan::formats::InputError& e) {
+    std::cerr << "cylscan: " << e.what() << "\n";
+    return 2;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "cylscan: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "cylscan: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,588 @@
+// cylscan simulate: renders the dataset of spec §6 on the virtual head,
+// driving it through its GPIO lines, clock and cameras as firmware would.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "drivers/sim/head_config.hpp"
+#include "drivers/sim/scene.hpp"
+#include "drivers/sim/virtual_head.hpp"
+#include "formats/atomic_file.hpp"
+#include "formats/capture_bundle.hpp"
+#include "formats/checkerboard_set.hpp"
+#include "formats/images.hpp"
+#include "formats/stereo_calibration.hpp"
+#include "tools/commands.hpp"
+
+namespace cylscan::tools {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using sim::Vec3;
+using std::chrono::nanoseconds;
+using WallClock = std::chrono::steady_clock;
+
+struct SimulateRequest {
+  std::string out;
+  std::string head;
+  int width = 0;
+  int height = 0;
+  int frames = 25;
+  double noise = 1.0;
+  std::uint64_t seed = 1;
+  std::vector<std::string> scenes;
+  int poses = 14;
+  int boards = 14;
+  int bit_depth = 0;
+  bool quick = false;
+  bool json = false;
+};
+
+json vec(const Vec3& v) {
+  return json::array({v.x(), v.y(), v.z()});
+}
+
+json matrix(const sim::Mat3& m) {
+  json rows = json::array();
+  for (int r = 0; r < 3; ++r)
+    rows.push_back({m(r, 0), m(r, 1), m(r, 2)});
+  return rows;
+}
+
+json truthOf(const sim::SceneObject& o) {
+  json t;
+  if (const auto* s = std::get_if<sim::Sphere>(&o.shape)) {
+    t = {{"type", "sphere"}, {"center", vec(s->center)}, {"radius", s->radius}};
+  } else if (const auto* p = std::get_if<sim::Plane>(&o.shape)) {
+    t = {{"type", "plane"}, {"point", vec(p->point)}, {"normal", vec(p->normal.normalized())}};
+    if (p->extent) {
+      t["extent"] = {(*p->extent)[0], (*p->extent)[1]};
+      t["axis_u"] = vec(p->axisU());
+    }
+  } else if (const auto* b = std::get_if<sim::Box>(&o.shape)) {
+    t = {{"type", "box"},
+         {"center", vec(b->center)},
+         {"size", vec(b->size)},
+         {"rotation", matrix(b->rotation)}};
+  } else if (const auto* c = std::get_if<sim::Checkerboard>(&o.shape)) {
+    t = {{"type", "checkerboard"}, {"center", vec(c->center)}, {"rotation", matrix(c->rotation)},
+         {"cols", c->cols},        {"rows", c->rows},          {"square_mm", c->square_mm}};
+  } else if (const auto* m = std::get_if<sim::Mesh>(&o.shape)) {
+    t = {{"type", "mesh"}, {"file", m->file}, {"triangles", m->mesh->triangles().size()}};
+  }
+  t["name"] = o.name;
+  t["albedo"] = o.albedo;
+  return t;
+}
+
+json truthOf(const sim::Scene& scene) {
+  if (scene.objects.size() == 1) return truthOf(scene.objects.front());
+  json objects = json::array();
+  for (const auto& o : scene.objects)
+    objects.push_back(truthOf(o));
+  return {{"type", "composite"}, {"objects", objects}};
+}
+
+sim::SceneObject sphere(const std::string& name, const Vec3& c, double r) {
+  return {name, sim::Sphere{c, r}, 0.8};
+}
+
+sim::SceneObject plane(const std::string& name, const Vec3& point, double rx_deg, double ry_deg) {
+  const sim::Mat3 r =
+      sim::rotationFromVectorDeg({rx_deg, 0, 0}) * sim::rotationFromVectorDeg({0, ry_deg, 0});
+  return {name, sim::Plane{point, r * Vec3(0, 0, -1), std::nullopt}, 0.8};
+}
+
+sim::Scene scene(const std::string& name, std::vector<sim::SceneObject> objects,
+                 double ambient = 0.03) {
+  sim::Scene s;
+  s.name = name;
+  s.ambient = ambient;
+  s.objects = std::move(objects);
+  return s;
+}
+
+// The built-in test scenes: spheres of the paper's 50 mm radius, a plane and
+// isolated objects with depth steps.
+std::vector<sim::Scene> testScenes() {
+  std::vector<sim::Scene> scenes;
+  scenes.push_back(scene("sphere_1", {sphere("sphere", {0, 0, 580}, 50)}));
+  scenes.push_back(scene("sphere_2", {sphere("sphere", {-25, 12, 555}, 50)}));
+  scenes.push_back(scene("sphere_3", {sphere("sphere", {30, -15, 605}, 50)}));
+  scenes.push_back(scene("plane", {plane("plane", {0, 0, 585}, -5, 8)}));
+  sim::Box box{{35, -35, 575}, {40, 40, 40}, sim::rotationFromVectorDeg({0, 35, 0})};
+  scenes.push_back(scene("objects", {sphere("sphere_a", {-45, -15, 550}, 30),
+                                     sphere("sphere_b", {40, 25, 612}, 25),
+                                     {"box", box, 0.75}}));
+  return scenes;
+}
+
+// Drives the virtual head as the firmware drives the hardware: step pulses
+// with a trapezoidal speed profile, a trigger pulse per frame, frames from the
+// cameras' driver interface.
+class Rig {
+ public:
+  explicit Rig(sim::VirtualHead& head) : head_(head), clock_(head.clock()) {
+    const sim::LinesConfig& l = head.config().lines;
+    auto spec = [](const sim::LineConfig& c, const char* role) {
+      drivers::LineSpec s;
+      s.name = c.name;
+      s.active_low = c.active_low;
+      s.role = role;
+      return s;
+    };
+    step_ = head.gpio().requestOutput(spec(l.step, "step"), false);
+    dir_ = head.gpio().requestOutput(spec(l.dir, "dir"), true);
+    enable_ = head.gpio().requestOutput(spec(l.enable, "enable"), true);
+    trigger_ = head.gpio().requestOutput(spec(l.trigger, "trigger"), false);
+    light_ = head.gpio().requestOutput(spec(l.light, "light"), false);
+    fault_ = head.gpio().requestInput(spec(l.fault, "fault"));
+    const sim::StageParams& s = head.config().stage;
+    steps_per_deg_ = s.stepsPerDeg();
+    position_ = head.stage().position();
+    start_rate_ = 0.6 * s.start_speed_deg_s * steps_per_deg_;
+    max_rate_ = 0.8 * s.max_speed_deg_s * steps_per_deg_;
+    accel_ = 0.7 * s.max_accel_deg_s2 * steps_per_deg_;
+  }
+
+  double stepsPerDeg() const { return steps_per_deg_; }
+  std::int64_t position() const { return position_; }
+  void light(bool on) { light_->set(on); }
+
+  void moveTo(std::int64_t target) {
+    const std::int64_t delta = target - position_;
+    if (delta == 0) return;
+    dir_->set(delta > 0);
+    nanoseconds t = clock_.now() + std::chrono::microseconds(5);  // direction setup time
+    const std::int64_t n = std::abs(delta);
+    for (std::int64_t i = 0; i < n; ++i) {
+      const double up = std::sqrt(start_rate_ * start_rate_ + 2 * accel_ * static_cast<double>(i));
+      const double down =
+          std::sqrt(start_rate_ * start_rate_ + 2 * accel_ * static_cast<double>(n - 1 - i));
+      const double rate = std::min({up, down, max_rate_});
+      t += nanoseconds{std::llround(1e9 / rate)};
+      clock_.sleepUntil(t);
+      step_->set(true);
+      clock_.sleepUntil(t + std::chrono::microseconds(2));
+      step_->set(false);
+    }
+    position_ = target;
+    clock_.sleepUntil(clock_.now() + std::chrono::milliseconds(150));  // settling
+    if (fault_->get() || head_.stage().position() != position_) {
+      throw std::runtime_error("simulate: the virtual stage lost steps (at " +
+                               std::to_string(head_.stage().position()) + ", expected " +
+                               std::to_string(position_) + ")");
+    }
+  }
+
+  // One trigger pulse; the frames of `cameras`, in that order.
+  std::vector<drivers::Frame> capture(const std::vector<std::string>& cameras) {
+    trigger_->set(true);
+    clock_.sleepUntil(clock_.now() + std::chrono::microseconds(10));
+    trigger_->set(false);
+    std::vector<drivers::Frame> frames;
+    for (const std::string& name : cameras) {
+      std::optional<drivers::Frame> f = head_.camera(name).waitFrame(std::chrono::seconds(1));
+      if (!f) throw std::runtime_error("simulate: camera '" + name + "' timed out");
+      auto& expected = sequence_[name];
+      if (f->sequence != expected) {
+        throw std::runtime_error("simulate: camera '" + name + "' lost a frame");
+      }
+      ++expected;
+      frames.push_back(std::move(*f));
+    }
+    return frames;
+  }
+
+  void startCameras(const std::vector<std::string>& active, int bit_depth) {
+    for (const std::string& name : head_.cameraNames()) {
+      drivers::Camera& cam = head_.camera(name);
+      cam.stop();
+      if (std::find(active.begin(), active.end(), name) == active.end()) continue;
+      drivers::CameraConfig config;
+      config.bit_depth = bit_depth;
+      config.trigger = drivers::TriggerMode::GpioPulse;
+      cam.configure(config);
+      cam.start();
+    }
+  }
+
+ private:
+  sim::VirtualHead& head_;
+  drivers::Clock& clock_;
+  std::unique_ptr<drivers::OutputLine> step_, dir_, enable_, trigger_, light_;
+  std::unique_ptr<drivers::InputLine> fault_;
+  double steps_per_deg_ = 0;
+  double start_rate_ = 0, max_rate_ = 0, accel_ = 0;
+  std::int64_t position_ = 0;
+  std::map<std::string, std::uint64_t> sequence_;
+};
+
+// The fringe acquisition plan: executed step positions of every frame.
+struct FringePlan {
+  std::int64_t high_start = 0;  // steps
+  std::int64_t low_start = 0;
+  int frames = 25;
+  std::vector<std::int64_t> high, low;
+  double high_start_deg = 0, low_start_deg = 0;
+  double azimuth_min = 0, azimuth_max = 0;
+};
+
+// Azimuth range (about the projector axis) of the main camera's field of view
+// over the working depths 540–620 mm.
+std::pair<double, double> azimuthRange(const sim::VirtualHead& head) {
+  const sim::CameraModel& cam = head.cameraModel("main");
+  double lo = 1e9, hi = -1e9;
+  for (double z : {540.0, 620.0}) {
+    for (int i = 0; i <= 20; ++i) {
+      const double f = i / 20.0;
+      const std::pair<double, double> border[] = {{f * (cam.width() - 1), 0},
+                                                  {f * (cam.width() - 1), cam.height() - 1.0},
+                                                  {0, f * (cam.height() - 1)},
+                                                  {cam.width() - 1.0, f * (cam.height() - 1)}};
+      for (const auto& [u, v] : border) {
+        const Vec3 d = cam.rayDirection(u, v);
+        const Vec3 p = cam.centre() + d * ((z - cam.centre().z()) / d.z());
+        const double a = head.projector().azimuthDeg(p);
+        lo = std::min(lo, a);
+        hi = std::max(hi, a);
+      }
+    }
+  }
+  return {lo, hi};
+}
+
+FringePlan planFringes(const sim::VirtualHead& head, double steps_per_deg, int frames) {
+  const sim::ProjectorParams& p = head.projector().params();
+  const double eq =
+      p.theta_high_deg * p.theta_low_deg / std::abs(p.theta_low_deg - p.theta_high_deg);
+  FringePlan plan;
+  plan.frames = frames;
+  std::tie(plan.azimuth_min, plan.azimuth_max) = azimuthRange(head);
+  if (plan.azimuth_max - plan.azimuth_min > eq - 2 * p.theta_low_deg) {
+    throw std::invalid_argument("simulate: the field of view spans " +
+                                std::to_string(plan.azimuth_max - plan.azimuth_min) +
+                                " deg of azimuth, more than one equivalent period allows");
+  }
+  // Centre the field of view in the middle of the high half (β ≈ 90° + eq/2)
+  // and of one equivalent period; the low set starts 180° earlier so both
+  // phases are zero at the same azimuth.
+  const double centre = (plan.azimuth_min + plan.azimuth_max) / 2;
+  const double k = std::floor(90.0 / eq);
+  const double start = sim::wrapDeg360(centre - (k * eq + eq / 2));
+  plan.high_start = std::llround(start * steps_per_deg);
+  plan.low_start = plan.high_start - std::llround(180.0 * steps_per_deg);
+  if (plan.low_start < 0) plan.low_start += std::llround(360.0 * steps_per_deg);
+  plan.high_start_deg = static_cast<double>(plan.high_start) / steps_per_deg;
+  plan.low_start_deg = static_cast<double>(plan.low_start) / steps_per_deg;
+  for (int i = 0; i < frames; ++i) {
+    plan.high.push_back(plan.high_start +
+                        std::llround(i * p.theta_high_deg / frames * steps_per_deg));
+    plan.low.push_back(plan.low_start + std::llround(i * p.theta_low_deg / frames * steps_per_deg));
+  }
+  return plan;
+}
+
+class DatasetWriter {
+ public:
+  DatasetWriter(const SimulateRequest& request, sim::VirtualHead& head)
+      : request_(request), head_(head), rig_(head) {
+    const sim::CameraParams& main = head.config().cameras.front();
+    bit_depth_ = main.bit_depth;
+    plan_ = planFringes(head, rig_.stepsPerDeg(), request.frames);
+  }
+
+  void writeBoard(const fs::path& dir, nlohmann::json& truth) {
+    const sim::Checkerboard proto;
+    fs::create_directories(dir / "main");
+    fs::create_directories(dir / "aux");
+    formats::writeCheckerboardInfo(dir, {proto.cols, proto.rows, proto.square_mm});
+    rig_.light(false);
+    rig_.startCameras({"main", "aux"}, bit_depth_);
+    const auto poses = boardPoses(request_.boards);
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+      head_.setScene(scene("board", {{"board", poses[i], 0.8}}, 0.7));
+      const auto frames = rig_.capture({"main", "aux"});
+      checkCorners(frames[0].image, poses[i], "main", i);
+      checkCorners(frames[1].image, poses[i], "aux", i);
+      const std::string id =
+          formats::frameFileName(static_cast<int>(i), static_cast<int>(poses.size()));
+      formats::writePng(dir / "main" / (id + ".png"), frames[0].image);
+      formats::writePng(dir / "aux" / (id + ".png"), frames[1].image);
+      truth[id] = {{"center", vec(poses[i].center)}, {"rotation", matrix(poses[i].rotation)}};
+    }
+    boards_ = static_cast<int>(poses.size());
+  }
+
+  void writeBundle(const fs::path& dir, const sim::Scene& s, const std::vector<std::string>& cams) {
+    head_.setScene(s);
+    rig_.startCameras(cams, bit_depth_);
+    rig_.light(true);
+    formats::CaptureInfo info;
+    info.cameras = cams;
+    const sim::ProjectorParams& p = head_.projector().params();
+    info.high.period_deg = p.theta_high_deg;
+    info.low.period_deg = p.theta_low_deg;
+    for (auto st : plan_.high)
+      info.high.stage_deg.push_back(angle(st));
+    for (auto st : plan_.low)
+      info.low.stage_deg.push_back(angle(st));
+    info.extra = {{"device", "cylscan virtual head"},
+                  {"scene", s.name},
+                  {"seed", request_.seed},
+                  {"steps_per_deg", rig_.stepsPerDeg()},
+                  {"stage_steps", {{"high", plan_.high}, {"low", plan_.low}}},
+                  {"exposure_us", head_.config().cameras.front().exposure_us}};
+    if (bit_depth_ > 8) info.extra["bit_depth"] = bit_depth_;
+    formats::CaptureBundleWriter writer(dir, info);
+    for (const auto set : formats::kFringeSets) {
+      const auto& steps = set == formats::FringeSetId::High ? plan_.high : plan_.low;
+      for (std::size_t k = 0; k < steps.size(); ++k) {
+        rig_.moveTo(steps[k]);
+        const auto frames = rig_.capture(cams);
+        for (std::size_t c = 0; c < cams.size(); ++c) {
+          writer.writeFrame(cams[c], set, static_cast<int>(k), frames[c].image);
+        }
+        ++frames_;
+      }
+    }
+    writer.commit();
+  }
+
+  const FringePlan& plan() const { return plan_; }
+  int boards() const { return boards_; }
+  double cornerError() const { return corner_error_; }
+  int frames() const { return frames_; }
+
+ private:
+  double angle(std::int64_t steps) const { return static_cast<double>(steps) / rig_.stepsPerDeg(); }
+
+  // Every board image must be usable: OpenCV finds the corners, at the truth.
+  void checkCorners(const cv::Mat& image, const sim::Checkerboard& board, const char* camera,
+                    std::size_t pose) {
+    cv::Mat eight = image;
+    if (image.depth() != CV_8U) image.convertTo(eight, CV_8U, 255.0 / ((1 << bit_depth_) - 1));
+    std::vector<cv::Point2f> found;
+    const std::string where = std::string(camera) + " board " + std::to_string(pose);
+    if (!cv::findChessboardCorners(eight, {board.cols, board.rows}, found)) {
+      throw std::runtime_error("simulate: OpenCV does not find the corners of " + where);
+    }
+    cv::cornerSubPix(eight, found, {5, 5}, {-1, -1},
+                     {cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-3});
+    const sim::CameraModel& cam = head_.cameraModel(camera);
+    const auto truth = board.corners();
+    double forward = 0, backward = 0;
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      const auto a = cam.project(truth[i]), b = cam.project(truth[truth.size() - 1 - i]);
+      forward = std::max(forward, std::hypot(a->x() - found[i].x, a->y() - found[i].y));
+      backward = std::max(backward, std::hypot(b->x() - found[i].x, b->y() - found[i].y));
+    }
+    corner_error_ = std::max(corner_error_, std::min(forward, backward));
+  }
+
+  // Board poses (deterministic), kept when every corner is well inside both images.
+  std::vector<sim::Checkerboard> boardPoses(int count) const {
+    std::vector<sim::Checkerboard> poses;
+    const double margin = 0.04 * head_.cameraModel("main").width();
+    for (int i = 0; static_cast<int>(poses.size()) < count && i < 400; ++i) {
+      sim::Checkerboard b;
+      const double z = 530 + 110 * std::fmod(i * 0.618034, 1.0);
+      const double rx = 22 * std::sin(i * 2.1), ry = 25 * std::sin(i * 1.3 + 0.7);
+      const double rz = 10 * std::sin(i * 0.9 + 0.3);
+      b.center = Vec3(14 * std::sin(i * 1.7), 10 * std::cos(i * 2.3), z);
+      b.rotation = sim::rotationFromVectorDeg({rx, ry, rz});
+      bool inside = true;
+      for (const char* name : {"main", "aux"}) {
+        const sim::CameraModel& cam = head_.cameraModel(name);
+        const Vec3 towards = (cam.centre() - b.center).normalized();
+        inside = inside && std::abs(towards.dot(b.rotation.col(2))) > std::cos(50 * sim::kDeg);
+        for (const Vec3& c : b.corners()) {
+          const auto px = cam.project(c);
+          inside = inside && px && px->x() > margin && px->y() > margin &&
+                   px->x() < cam.width() - 1 - margin && px->y() < cam.height() - 1 - margin;
+        }
+      }
+      if (inside) poses.push_back(b);
+    }
+    if (static_cast<int>(poses.size()) < count) {
+      throw std::runtime_error("simulate: could not place " + std::to_string(count) +
+                               " checkerboard poses in view");
+    }
+    return poses;
+  }
+
+  const SimulateRequest& request_;
+  sim::VirtualHead& head_;
+  Rig rig_;
+  FringePlan plan_;
+  int bit_depth_ = 8;
+  int boards_ = 0;
+  int frames_ = 0;
+  double corner_error_ = 0;
+};
+
+formats::StereoCalibration stereoTruth(const sim::VirtualHead& head) {
+  const sim::CameraModel& main = head.cameraModel("main");
+  const sim::CameraModel& aux = head.cameraModel("aux");
+  auto k = [](const sim::CameraParams& p) {
+    return cv::Matx33d(p.fx, 0, p.cx, 0, p.fy, p.cy, 0, 0, 1);
+  };
+  formats::StereoCalibration c;
+  c.image_width = main.width();
+  c.image_height = main.height();
+  c.camera_matrix_main = k(main.params());
+  c.dist_coeffs_main = {main.params().k1, main.params().k2, 0, 0, 0};
+  c.camera_matrix_aux = k(aux.params());
+  c.dist_coeffs_aux = {aux.params().k1, aux.params().k2, 0, 0, 0};
+  // X_aux = R X_main + T with R = R_aux←main, T = −R C_aux (main is the frame).
+  const sim::Mat3 r = aux.rotationCamFromMain() * main.rotationCamFromMain().transpose();
+  const Vec3 t = -aux.rotationCamFromMain() * (aux.centre() - main.centre());
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j)
+      c.R(i, j) = r(i, j);
+    c.T[i] = t[i];
+  }
+  return c;
+}
+
+void runSimulate(SimulateRequest request) {
+  const auto started = WallClock::now();
+  if (request.quick) {
+    if (request.width == 0) request.width = 320;
+    if (request.height == 0) request.height = 256;
+  }
+  if ((request.width == 0) != (request.height == 0)) {
+    throw std::invalid_argument("simulate: give both --width and --height");
+  }
+  sim::HeadConfig config =
+      request.head.empty() ? sim::defaultHeadConfig() : sim::loadHeadConfig(request.head);
+  if (config.cameras.size() < 2 || config.cameras[1].name != "aux") {
+    throw std::invalid_argument("simulate: the head needs the cameras 'main' and 'aux'");
+  }
+  if (request.width > 0) config = sim::withResolution(config, request.width, request.height);
+  config.noise.scale *= request.noise;
+  if (request.bit_depth > 0) {
+    for (auto& cam : config.cameras)
+      cam.bit_depth = request.bit_depth;
+  }
+  std::vector<sim::Scene> tests = testScenes();
+  std::set<std::string> names;
+  for (const auto& s : tests)
+    names.insert(s.name);
+  for (const std::string& file : request.scenes) {
+    sim::Scene s = sim::loadScene(file);
+    if (!names.insert(s.name).second) {
+      throw std::invalid_argument(file + ": scene name '" + s.name + "' is already used");
+    }
+    tests.push_back(std::move(s));
+  }
+
+  sim::VirtualHead head(config, sim::Scene{}, request.seed);
+  const fs::path out(request.out);
+  fs::create_directories(out);
+  DatasetWriter writer(request, head);
+  json truth = {{"scenes", json::object()}, {"calib", json::object()}, {"board", json::object()}};
+
+  writer.writeBoard(out / "board", truth["board"]);
+
+  const int poses = request.poses;
+  for (int i = 0; i < poses; ++i) {
+    const double z = poses == 1 ? 580.0 : 540.0 + 80.0 * i / (poses - 1);
+    const double rx = 10 * std::sin(i * 2.4 + 0.5), ry = 12 * std::sin(i * 1.7 + 1.1);
+    const sim::SceneObject p = plane("plane", {0, 0, z}, rx, ry);
+    const std::string id = "pose" + formats::frameFileName(i, poses);
+    writer.writeBundle(out / "calib" / id, scene(id, {p}), {"main", "aux"});
+    truth["calib"][id] = truthOf(p);
+  }
+  for (const sim::Scene& s : tests) {
+    writer.writeBundle(out / "test" / s.name, s, {"main"});
+    truth["scenes"][s.name] = truthOf(s);
+  }
+
+  const FringePlan& plan = writer.plan();
+  const auto& proj = head.projector().params();
+  truth["acquisition"] = {{"frames", plan.frames},
+                          {"high_start_deg", plan.high_start_deg},
+                          {"low_start_deg", plan.low_start_deg},
+                          {"steps_per_deg", head.config().stage.stepsPerDeg()},
+                          {"azimuth_range_deg", {plan.azimuth_min, plan.azimuth_max}},
+                          {"projector_axis_origin_mm", proj.axis_origin_mm},
+                          {"seed", request.seed},
+                          {"noise_scale", config.noise.scale}};
+  formats::writeStereoCalibration(out / "stereo_truth.yaml", stereoTruth(head));
+  formats::writeFileAtomically(out / "truth.json", truth.dump(2) + "\n");
+
+  const double seconds = std::chrono::duration<double>(WallClock::now() - started).count();
+  const sim::CameraModel& main = head.cameraModel("main");
+  if (request.json) {
+    json names_json = json::array();
+    for (const auto& s : tests)
+      names_json.push_back(s.name);
+    std::cout << json{{"out", out.string()},
+                      {"width", main.width()},
+                      {"height", main.height()},
+                      {"frames", request.frames},
+                      {"seed", request.seed},
+                      {"noise", request.noise},
+                      {"board_pairs", writer.boards()},
+                      {"board_corner_error_px", writer.cornerError()},
+                      {"calib_poses", poses},
+                      {"test_scenes", names_json},
+                      {"fringe_frames_rendered", writer.frames()},
+                      {"high_start_deg", plan.high_start_deg},
+                      {"low_start_deg", plan.low_start_deg},
+                      {"azimuth_range_deg", {plan.azimuth_min, plan.azimuth_max}},
+                      {"seconds", seconds}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << "simulate: " << writer.boards() << " board pairs (corners within "
+              << writer.cornerError() << " px), " << poses << " calibration bundles, "
+              << tests.size() << " test scenes (" << main.width() << "x" << main.height()
+              << ", N=" << request.frames << ", noise " << request.noise << ", seed "
+              << request.seed << ") in " << seconds << " s -> " << out.string() << "\n";
+  }
+}
+
+}  // namespace
+
+void addSimulateCommand(CLI::App& app) {
+  auto request = std::make_shared<SimulateRequest>();
+  CLI::App* cmd = app.add_subcommand("simulate", "render a dataset on the virtual head (spec §6)");
+  cmd->add_option("--out", request->out, "output directory")->required();
+  cmd->add_option("--head", request->head,
+                  "virtual head file (default: built-in board/sim/head.toml)");
+  cmd->add_option("--width", request->width, "image width (intrinsics scaled, same field of view)")
+      ->check(CLI::Range(64, 4096));
+  cmd->add_option("--height", request->height, "image height")->check(CLI::Range(64, 4096));
+  cmd->add_option("--frames", request->frames, "frames per fringe set")->check(CLI::Range(3, 200));
+  cmd->add_option("--noise", request->noise, "scale on the noise model (0: noiseless)")
+      ->check(CLI::Range(0.0, 100.0));
+  cmd->add_option("--seed", request->seed, "noise seed (same seed, same bytes)");
+  cmd->add_option("--scene", request->scenes, "extra test scene file (repeatable)");
+  cmd->add_option("--poses", request->poses, "calibration plane poses")->check(CLI::Range(1, 100));
+  cmd->add_option("--boards", request->boards, "checkerboard poses")->check(CLI::Range(1, 99));
+  cmd->add_option("--bit-depth", request->bit_depth, "camera bit depth (8, 10, 12 or 16)")
+      ->check(CLI::IsMember({8, 10, 12, 16}));
+  cmd->add_flag("--quick", request->quick, "320x256 unless --width/--height are given");
+  cmd->add_flag("--json", request->json, "print the summary as one JSON object");
+  cmd->callback([request] { runSimulate(*request); });
+}
+
+}  // namespace cylscan::tools

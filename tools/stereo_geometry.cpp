@@ -1,0 +1,54 @@
+#include "tools/stereo_geometry.hpp"
+
+#include <string>
+
+#include "formats/input_error.hpp"
+
+namespace cylscan::tools {
+namespace {
+
+std::string sizeText(cv::Size size) {
+  return std::to_string(size.width) + "x" + std::to_string(size.height);
+}
+
+cv::Size imageSize(const formats::StereoCalibration& calib) {
+  return {calib.image_width, calib.image_height};
+}
+
+}  // namespace
+
+algo::PinholeCamera mainCamera(const formats::StereoCalibration& calib) {
+  return {calib.camera_matrix_main, calib.dist_coeffs_main, imageSize(calib)};
+}
+
+algo::PinholeCamera auxCamera(const formats::StereoCalibration& calib) {
+  return {calib.camera_matrix_aux, calib.dist_coeffs_aux, imageSize(calib)};
+}
+
+algo::StereoGeometry toStereoGeometry(const formats::StereoCalibration& calib) {
+  return {mainCamera(calib), auxCamera(calib), calib.R, calib.T};
+}
+
+formats::StereoCalibration toStereoCalibration(const algo::StereoGeometry& geometry) {
+  formats::StereoCalibration calib;
+  calib.image_width = geometry.main.image_size.width;
+  calib.image_height = geometry.main.image_size.height;
+  calib.camera_matrix_main = geometry.main.camera_matrix;
+  calib.dist_coeffs_main = geometry.main.dist_coeffs;
+  calib.camera_matrix_aux = geometry.aux.camera_matrix;
+  calib.dist_coeffs_aux = geometry.aux.dist_coeffs;
+  calib.R = geometry.rotation;
+  calib.T = geometry.translation;
+  return calib;
+}
+
+void requireStereoImageSize(const std::filesystem::path& stereo_file,
+                            const formats::StereoCalibration& calib, cv::Size size,
+                            const std::filesystem::path& images) {
+  if (imageSize(calib) == size) return;
+  throw formats::InputError(stereo_file, "calibrated for " + sizeText(imageSize(calib)) +
+                                             " images, but " + images.string() + " has " +
+                                             sizeText(size) + " images");
+}
+
+}  // namespace cylscan::tools
