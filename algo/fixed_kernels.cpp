@@ -137,12 +137,78 @@ CYLSCAN_INLINE_BODY std::size_t combineBlock(
   return valid;
 }
 
+// The compact outputs of one block: the same arithmetic as combineBlock up to the
+// conversion to radians, which is left to the reader of the compact maps.
+CYLSCAN_INLINE_BODY std::size_t combineCompactBlock(
+    const CombineParams& p, std::size_t n, const BinaryAngle* __restrict phase_high,
+    const BinaryAngle* __restrict phase_low, const std::uint16_t* __restrict mod_high,
+    const std::uint16_t* __restrict mod_low, const std::uint32_t* __restrict sum_a,
+    std::int32_t* __restrict absolute, float* __restrict fused, std::uint8_t* __restrict invalid,
+    std::uint16_t* __restrict texture) {
+  const FixedUnwrapParams unwrap = p.unwrap;
+  const FixedFusionParams fusion = p.fusion;
+  const std::int32_t bound = p.residual_bound;
+  const std::uint32_t min_mod = p.min_modulation;
+  const float texture_code_per_sum = p.texture_code_per_sum;
+  constexpr std::uint32_t kInvalidAbsolute = 0x80000000u;  // INT32_MIN
+  std::size_t valid = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const BinaryAngle h = phase_high[i];
+    const BinaryAngle l = phase_low[i];
+    const std::uint32_t mh = mod_high[i];
+    const std::uint32_t ml = mod_low[i];
+    const std::uint32_t a = sum_a[i];
+    const FixedOrders orders = unwrapFixed(unwrap, h, l);
+    const std::int32_t residual = std::abs(orders.residual);
+    const std::int32_t absolute_high = orders.high * 65536 + h;
+    const std::int32_t absolute_low = orders.low * 65536 + l;
+    const std::uint32_t bad = static_cast<std::uint32_t>(mh < min_mod) * kLowModulationBit |
+                              static_cast<std::uint32_t>(ml < min_mod) * kLowModulationBit |
+                              (a & 1u) * kSaturatedBit |
+                              static_cast<std::uint32_t>(residual > bound) * kOrderInconsistentBit;
+    const float fused_units = fuseFixed(fusion, absolute_high, absolute_low, mh, ml);
+    float code = static_cast<float>(static_cast<std::int32_t>(a & ~1u)) * texture_code_per_sum;
+    code = code + 0.5f;
+    code = code < 65535.0f ? code : 65535.0f;
+    code = code > 0.0f ? code : 0.0f;
+    const std::uint32_t mask = 0u - static_cast<std::uint32_t>(bad != 0);
+    absolute[i] = static_cast<std::int32_t>((static_cast<std::uint32_t>(absolute_high) & ~mask) |
+                                            (kInvalidAbsolute & mask));
+    fused[i] = nanWhere(mask, fused_units);
+    invalid[i] = static_cast<std::uint8_t>(bad);
+    texture[i] = static_cast<std::uint16_t>(static_cast<std::int32_t>(code));
+    valid += bad == 0 ? 1 : 0;
+  }
+  return valid;
+}
+
+CYLSCAN_INLINE_BODY std::size_t combineBlockTo(const CombineParams& p, std::size_t m,
+                                               std::size_t start, const BinaryAngle* ph,
+                                               const BinaryAngle* pl, const std::uint16_t* mh,
+                                               const std::uint16_t* ml, const std::uint32_t* sum_a,
+                                               const CombineOutputs& out) {
+  return combineBlock(p, m, ph, pl, mh, ml, sum_a + start, out.wrapped_high + start,
+                      out.wrapped_low + start, out.modulation_high + start,
+                      out.modulation_low + start, out.texture + start, out.absolute + start,
+                      out.fused + start, out.fringe_order + start, out.invalid + start);
+}
+
+CYLSCAN_INLINE_BODY std::size_t combineBlockTo(const CombineParams& p, std::size_t m,
+                                               std::size_t start, const BinaryAngle* ph,
+                                               const BinaryAngle* pl, const std::uint16_t* mh,
+                                               const std::uint16_t* ml, const std::uint32_t* sum_a,
+                                               const CompactOutputs& out) {
+  return combineCompactBlock(p, m, ph, pl, mh, ml, sum_a + start, out.absolute + start,
+                             out.fused + start, out.invalid + start, out.texture + start);
+}
+
+template <typename Outputs>
 CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t n,
                                             const std::uint32_t* sum_c, const std::uint32_t* sum_s,
                                             const std::uint32_t* sum_a,
                                             const BinaryAngle* first_phase,
                                             const std::uint16_t* first_modulation,
-                                            const CombineOutputs& out) {
+                                            const Outputs& out) {
   const float code_per_sum = p.second_code_per_sum;
   alignas(64) BinaryAngle second_phase[kBlock];
   alignas(64) std::uint16_t second_modulation[kBlock];
@@ -156,10 +222,7 @@ CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t 
     const BinaryAngle* pl = p.second_is_high ? stored_phase : second_phase;
     const std::uint16_t* mh = p.second_is_high ? second_modulation : stored_mod;
     const std::uint16_t* ml = p.second_is_high ? stored_mod : second_modulation;
-    valid += combineBlock(p, m, ph, pl, mh, ml, sum_a + start, out.wrapped_high + start,
-                          out.wrapped_low + start, out.modulation_high + start,
-                          out.modulation_low + start, out.texture + start, out.absolute + start,
-                          out.fused + start, out.fringe_order + start, out.invalid + start);
+    valid += combineBlockTo(p, m, start, ph, pl, mh, ml, sum_a, out);
   }
   return valid;
 }
@@ -184,6 +247,12 @@ std::size_t combineBaseline(const CombineParams& p, std::size_t n, const std::ui
                             const CombineOutputs& out) {
   return combineBody(p, n, c, s, a, phase, mod, out);
 }
+std::size_t combineBaseline(const CombineParams& p, std::size_t n, const std::uint32_t* c,
+                            const std::uint32_t* s, const std::uint32_t* a,
+                            const BinaryAngle* phase, const std::uint16_t* mod,
+                            const CompactOutputs& out) {
+  return combineBody(p, n, c, s, a, phase, mod, out);
+}
 
 #if CYLSCAN_AVX2_VARIANT
 CYLSCAN_TARGET_AVX2 void fold8Avx2(FoldMode mode, const std::uint8_t* f, std::size_t n,
@@ -206,6 +275,12 @@ CYLSCAN_TARGET_AVX2 std::size_t combineAvx2(const CombineParams& p, std::size_t 
                                             const std::uint16_t* mod, const CombineOutputs& out) {
   return combineBody(p, n, c, s, a, phase, mod, out);
 }
+CYLSCAN_TARGET_AVX2 std::size_t combineAvx2(const CombineParams& p, std::size_t n,
+                                            const std::uint32_t* c, const std::uint32_t* s,
+                                            const std::uint32_t* a, const BinaryAngle* phase,
+                                            const std::uint16_t* mod, const CompactOutputs& out) {
+  return combineBody(p, n, c, s, a, phase, mod, out);
+}
 CYLSCAN_TARGET_AVX512 void fold8Avx512(FoldMode mode, const std::uint8_t* f, std::size_t n,
                                        const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,
                                        std::uint32_t* a) {
@@ -226,6 +301,13 @@ CYLSCAN_TARGET_AVX512 std::size_t combineAvx512(const CombineParams& p, std::siz
                                                 const std::uint32_t* a, const BinaryAngle* phase,
                                                 const std::uint16_t* mod,
                                                 const CombineOutputs& out) {
+  return combineBody(p, n, c, s, a, phase, mod, out);
+}
+CYLSCAN_TARGET_AVX512 std::size_t combineAvx512(const CombineParams& p, std::size_t n,
+                                                const std::uint32_t* c, const std::uint32_t* s,
+                                                const std::uint32_t* a, const BinaryAngle* phase,
+                                                const std::uint16_t* mod,
+                                                const CompactOutputs& out) {
   return combineBody(p, n, c, s, a, phase, mod, out);
 }
 #endif
@@ -282,10 +364,12 @@ void phaseKernel(KernelIsa isa, const std::uint32_t* sum_c, const std::uint32_t*
   phaseBaseline(sum_c, sum_s, n, code_per_sum, phase, modulation);
 }
 
-std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
-                          const std::uint32_t* sum_c, const std::uint32_t* sum_s,
-                          const std::uint32_t* sum_a, const BinaryAngle* first_phase,
-                          const std::uint16_t* first_modulation, const CombineOutputs& out) {
+namespace {
+template <typename Outputs>
+std::size_t dispatchCombine(KernelIsa isa, const CombineParams& p, std::size_t n,
+                            const std::uint32_t* sum_c, const std::uint32_t* sum_s,
+                            const std::uint32_t* sum_a, const BinaryAngle* first_phase,
+                            const std::uint16_t* first_modulation, const Outputs& out) {
 #if CYLSCAN_AVX2_VARIANT
   if (useAvx512(isa)) {
     return combineAvx512(p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
@@ -296,6 +380,21 @@ std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
 #endif
   (void)isa;
   return combineBaseline(p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
+}
+}  // namespace
+
+std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
+                          const std::uint32_t* sum_c, const std::uint32_t* sum_s,
+                          const std::uint32_t* sum_a, const BinaryAngle* first_phase,
+                          const std::uint16_t* first_modulation, const CombineOutputs& out) {
+  return dispatchCombine(isa, p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
+}
+
+std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
+                          const std::uint32_t* sum_c, const std::uint32_t* sum_s,
+                          const std::uint32_t* sum_a, const BinaryAngle* first_phase,
+                          const std::uint16_t* first_modulation, const CompactOutputs& out) {
+  return dispatchCombine(isa, p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
 }
 
 }  // namespace cylscan::algo

@@ -48,6 +48,7 @@ struct CombineParams {
   float counts_per_code = 0;         // modulation code → counts
   float counts_per_texture = 0;      // texture sum → counts (mean of both sets' A)
   float second_code_per_sum = 0;     // modulation code per unit of the live sums
+  float texture_code_per_sum = 0;    // texture sum → compact texture code
   bool second_is_high = false;       // which set the live sums belong to
 };
 
@@ -63,6 +64,13 @@ struct CombineOutputs {
   std::uint8_t* invalid;
 };
 
+struct CompactOutputs {
+  std::int32_t* absolute;  // K·65536 + φh, INT32_MIN where invalid
+  float* fused;            // high binary-angle units, NaN where invalid
+  std::uint8_t* invalid;
+  std::uint16_t* texture;  // round(texture sum · texture_code_per_sum), clamped to [0, 65535]
+};
+
 // One fused pass: atan2 and modulation of the second set from the live sums,
 // unwrapping against the stored first set, flags, fusion, all output maps.
 // Returns the number of valid pixels.
@@ -70,5 +78,10 @@ std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
                           const std::uint32_t* sum_c, const std::uint32_t* sum_s,
                           const std::uint32_t* sum_a, const BinaryAngle* first_phase,
                           const std::uint16_t* first_modulation, const CombineOutputs& out);
+// The same pass writing only the compact outputs (11 bytes per pixel).
+std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
+                          const std::uint32_t* sum_c, const std::uint32_t* sum_s,
+                          const std::uint32_t* sum_a, const BinaryAngle* first_phase,
+                          const std::uint16_t* first_modulation, const CompactOutputs& out);
 
 }  // namespace cylscan::algo

@@ -51,6 +51,10 @@ class FixedPipeline final : public PhasePipeline {
     combine_.radians_per_unit = static_cast<float>(2 * std::numbers::pi / 65536.0);
     combine_.counts_per_code = static_cast<float>(1.0 / codes_per_count);
     combine_.counts_per_texture = static_cast<float>(1.0 / (2.0 * static_cast<double>(a_scale)));
+    // Compact texture: 65536 codes per full scale.
+    texture_codes_per_count_ = 65536.0 / (max_pixel + 1);
+    combine_.texture_code_per_sum =
+        static_cast<float>(texture_codes_per_count_ / (2.0 * static_cast<double>(a_scale)));
     fold_limits_.saturation = static_cast<std::uint32_t>(o.saturation_level);
     fold_limits_.max_pixel = static_cast<std::uint32_t>(max_pixel);
   }
@@ -107,6 +111,20 @@ class FixedPipeline final : public PhasePipeline {
     maps.valid_fraction = static_cast<double>(valid) / static_cast<double>(pixels_);
   }
 
+  void finalizeCompact(CompactPhase& out) const override {
+    prepareCompactPhase(out, setup_.size);
+    CombineParams p = combine_;
+    p.second_is_high = *second_ == FringeSet::High;
+    p.second_code_per_sum = code_per_sum_[index(*second_)];
+    const CompactOutputs compact{out.absolute.ptr<std::int32_t>(), out.fused.ptr<float>(),
+                                 out.invalid.ptr<std::uint8_t>(), out.texture.ptr<std::uint16_t>()};
+    const std::size_t valid =
+        combineKernel(isa_, p, pixels_, sum_c_.data(), sum_s_.data(), sum_a_.data(),
+                      first_phase_.data(), first_modulation_.data(), compact);
+    out.texture_codes_per_count = texture_codes_per_count_;
+    out.valid_fraction = static_cast<double>(valid) / static_cast<double>(pixels_);
+  }
+
   void reset() override {
     // Nothing to clear: the first fold of the scan overwrites all sums.
     first_.reset();
@@ -125,6 +143,7 @@ class FixedPipeline final : public PhasePipeline {
   float code_per_sum_[2] = {};
   FoldWeights fold_limits_;
   CombineParams combine_;
+  double texture_codes_per_count_ = 0;
   std::vector<std::uint32_t> sum_c_, sum_s_, sum_a_;
   std::vector<BinaryAngle> first_phase_;
   std::vector<std::uint16_t> first_modulation_;

@@ -178,6 +178,20 @@ void PhaseEngine::finalize(PhaseMaps& maps) {
   im.pipeline->finalize(maps);
 }
 
+void PhaseEngine::finalizeCompact(CompactPhase& out) {
+  const Impl& im = *impl_;
+  if (!im.setup.options.fixed_point) {
+    throw std::logic_error("finalizeCompact(): only the fixed-point path has a compact form");
+  }
+  if (!im.complete(FringeSet::High) || !im.complete(FringeSet::Low)) {
+    throw std::logic_error(
+        "finalizeCompact(): frames are missing: high " + std::to_string(im.count[0]) + " of " +
+        std::to_string(im.folded[0].size()) + ", low " + std::to_string(im.count[1]) + " of " +
+        std::to_string(im.folded[1].size()) + " folded");
+  }
+  im.pipeline->finalizeCompact(out);
+}
+
 void PhaseEngine::reset() {
   impl_->reset();
 }
@@ -216,6 +230,17 @@ void preparePhaseMaps(PhaseMaps& maps, cv::Size size) {
   prepare(maps.fused, CV_32FC1);
   prepare(maps.invalid, CV_8UC1);
   maps.valid_fraction = 0;
+}
+
+void prepareCompactPhase(CompactPhase& out, cv::Size size) {
+  const auto prepare = [&](cv::Mat& m, int type) {
+    if (!m.isContinuous() || m.size() != size || m.type() != type) m.release();
+    m.create(size, type);
+  };
+  prepare(out.absolute, CV_32SC1);
+  prepare(out.fused, CV_32FC1);
+  prepare(out.invalid, CV_8UC1);
+  prepare(out.texture, CV_16UC1);
 }
 
 }  // namespace cylscan::algo

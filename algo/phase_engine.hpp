@@ -8,6 +8,7 @@
 // (fixed_point = false) is for tests and comparisons.
 #pragma once
 
+#include <climits>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -55,6 +56,27 @@ struct PhaseMaps {
   double valid_fraction = 0;
 };
 
+// The device's output of a scan: what the firmware keeps, 11 bytes per pixel written
+// in one pass (PhaseMaps writes 31). Values are the fixed-point path's own, before any
+// conversion to radians, so PhaseMaps' fields follow from them exactly where valid:
+//   absolute (PhaseMaps) == float(absolute) · float(2π/65536)   (bit for bit)
+//   fringe_order == absolute >> 16,  wrapped_high == float(absolute & 0xFFFF) · float(2π/65536)
+//   fused (PhaseMaps) == fused · float(2π/65536)                 (bit for bit)
+//   invalid and valid_fraction identical.
+struct CompactPhase {
+  static constexpr std::int32_t kInvalidAbsolute = INT32_MIN;
+  // CV_32SC1, Φ of the high set in binary-angle units (65536 per 2π): K·65536 + φh;
+  // kInvalidAbsolute where invalid.
+  cv::Mat absolute;
+  cv::Mat fused;    // CV_32FC1, fused Φ in the same units (fractional), NaN where invalid
+  cv::Mat invalid;  // CV_8UC1, InvalidReason bits, 0 = valid
+  // CV_16UC1, A (mean of both sets) as a code: round(A · texture_codes_per_count), clamped
+  // to [0, 65535]; 65536 codes per full scale (256 per count at 8 bits, 1 at 16 bits).
+  cv::Mat texture;
+  double texture_codes_per_count = 0;
+  double valid_fraction = 0;
+};
+
 class PhaseEngine {
  public:
   // Throws ShiftSolveError (names the set) for singular shifts, std::invalid_argument for
@@ -79,6 +101,11 @@ class PhaseEngine {
   // The same into existing maps, reusing their memory when size and type fit.
   // finalize() does not consume the state: it may be called again.
   void finalize(PhaseMaps& maps);
+  // The device's finalize: CompactPhase in one fused pass (the second set's atan2,
+  // unwrapping, fusion, flags), reusing the memory of `out` when size and type fit.
+  // Does not consume the state. Fixed-point path only: the reference path throws
+  // std::logic_error, as do missing frames.
+  void finalizeCompact(CompactPhase& out);
 
   // Forget all folded frames and start a new scan with the same geometry.
   void reset();

@@ -39,6 +39,8 @@ class PhasePipeline {
   virtual void fold(FringeSet set, int k, const cv::Mat& frame) = 0;
   // Both sets complete.
   virtual void finalize(PhaseMaps& maps) const = 0;
+  // Both sets complete; throws std::logic_error where the path has no compact form.
+  virtual void finalizeCompact(CompactPhase& out) const = 0;
   virtual void reset() = 0;
   virtual std::size_t workingStateBytes() const = 0;
 };
@@ -48,5 +50,6 @@ std::unique_ptr<PhasePipeline> makeReferencePipeline(const PipelineSetup& setup)
 
 // Allocates (or reuses, when size and type fit and the data is continuous) all maps.
 void preparePhaseMaps(PhaseMaps& maps, cv::Size size);
+void prepareCompactPhase(CompactPhase& out, cv::Size size);
 
 }  // namespace cylscan::algo

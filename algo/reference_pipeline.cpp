@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 #include <optional>
+#include <stdexcept>
 #include <vector>
 
 #include "algo/phase_pipeline.hpp"
@@ -62,6 +63,10 @@ class ReferencePipeline final : public PhasePipeline {
         sum_a_[i][p] += w.a * v;
       }
     }
+  }
+
+  void finalizeCompact(CompactPhase& /*out*/) const override {
+    throw std::logic_error("finalizeCompact(): only the fixed-point path has a compact form");
   }
 
   void finalize(PhaseMaps& maps) const override {

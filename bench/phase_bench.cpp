@@ -14,6 +14,7 @@
 
 namespace {
 
+using cylscan::algo::CompactPhase;
 using cylscan::algo::FringeSet;
 using cylscan::algo::FringeSetGeometry;
 using cylscan::algo::PhaseEngine;
@@ -118,6 +119,20 @@ void BM_Finalize(benchmark::State& state, bool fixed) {
   setCounters(state, engine);
 }
 
+// The device's finalize: CompactPhase (absolute, fused, invalid, texture: 11 B/px written).
+void BM_FinalizeCompact(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const Scan& s = scan();
+  PhaseEngine engine(cv::Size(kWidth, kHeight), s.high, s.low, options(true));
+  foldAll(engine, s);
+  CompactPhase out;
+  for (auto _ : state) {  // NOLINT(clang-analyzer-deadcode.DeadStores)
+    engine.finalizeCompact(out);
+    benchmark::DoNotOptimize(out.valid_fraction);
+  }
+  setCounters(state, engine);
+}
+
 // The same, allocating fresh maps every time (PhaseMaps finalize()).
 void BM_FinalizeNewMaps(benchmark::State& state, bool fixed) {
   cv::setNumThreads(1);
@@ -145,13 +160,30 @@ void BM_Pipeline(benchmark::State& state, bool fixed) {
   setCounters(state, engine);
 }
 
+// The whole 2x25-frame scan with the device's compact finalize.
+void BM_PipelineCompact(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const Scan& s = scan();
+  PhaseEngine engine(cv::Size(kWidth, kHeight), s.high, s.low, options(true));
+  CompactPhase out;
+  for (auto _ : state) {  // NOLINT(clang-analyzer-deadcode.DeadStores)
+    engine.reset();
+    foldAll(engine, s);
+    engine.finalizeCompact(out);
+    benchmark::DoNotOptimize(out.valid_fraction);
+  }
+  setCounters(state, engine);
+}
+
 BENCHMARK_CAPTURE(BM_Fold, fixed, true);
 BENCHMARK_CAPTURE(BM_Fold, double, false);
 BENCHMARK_CAPTURE(BM_Finalize, fixed, true);
 BENCHMARK_CAPTURE(BM_Finalize, double, false);
 BENCHMARK_CAPTURE(BM_FinalizeNewMaps, fixed, true);
+BENCHMARK(BM_FinalizeCompact);
 BENCHMARK_CAPTURE(BM_Pipeline, fixed, true);
 BENCHMARK_CAPTURE(BM_Pipeline, double, false);
+BENCHMARK(BM_PipelineCompact);
 
 // ---- OpenCV float baseline, as a user would write it ------------------------------
 

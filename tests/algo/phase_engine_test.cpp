@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -400,6 +402,105 @@ TEST(PhaseEngine, FinalizeIsRepeatableAndResetStartsOver) {
   EXPECT_THROW(engine.finalize(), std::logic_error);
   fold_all();
   expectIdenticalMaps(first, engine.finalize());
+}
+
+// ---- compact finalize ----------------------------------------------------------------
+
+// The compact outputs against the full maps of the same engine: exact where the
+// values are the same numbers, within half a code for the rounded texture.
+void expectCompactMatchesFull(const CompactPhase& c, const PhaseMaps& m, int bits,
+                              const std::string& what) {
+  const auto rad = static_cast<float>(2 * std::numbers::pi / 65536.0);
+  ASSERT_EQ(c.absolute.type(), CV_32SC1) << what;
+  ASSERT_EQ(c.fused.type(), CV_32FC1) << what;
+  ASSERT_EQ(c.invalid.type(), CV_8UC1) << what;
+  ASSERT_EQ(c.texture.type(), CV_16UC1) << what;
+  EXPECT_TRUE(bitIdentical(c.invalid, m.invalid)) << what;
+  EXPECT_EQ(c.valid_fraction, m.valid_fraction) << what;
+  EXPECT_EQ(c.texture_codes_per_count, 65536.0 / (1 << bits)) << what;
+  int valid = 0;
+  for (int y = 0; y < m.absolute.rows; ++y) {
+    for (int x = 0; x < m.absolute.cols; ++x) {
+      const std::int32_t absolute = c.absolute.at<std::int32_t>(y, x);
+      const float fused = c.fused.at<float>(y, x);
+      const double texture = m.texture.at<float>(y, x) * c.texture_codes_per_count;
+      ASSERT_LE(std::abs(c.texture.at<std::uint16_t>(y, x) - std::clamp(texture, 0.0, 65535.0)),
+                0.5 + 1e-3)
+          << what << " " << x << "," << y;
+      if (m.invalid.at<std::uint8_t>(y, x) != 0) {
+        ASSERT_EQ(absolute, CompactPhase::kInvalidAbsolute) << what << " " << x << "," << y;
+        ASSERT_TRUE(std::isnan(fused)) << what << " " << x << "," << y;
+        continue;
+      }
+      ++valid;
+      // Bit for bit: the same float products as the full finalize.
+      ASSERT_EQ(std::bit_cast<std::uint32_t>(static_cast<float>(absolute) * rad),
+                std::bit_cast<std::uint32_t>(m.absolute.at<float>(y, x)))
+          << what << " " << x << "," << y;
+      ASSERT_EQ(std::bit_cast<std::uint32_t>(fused * rad),
+                std::bit_cast<std::uint32_t>(m.fused.at<float>(y, x)))
+          << what << " " << x << "," << y;
+      ASSERT_EQ(absolute >> 16, m.fringe_order.at<std::int16_t>(y, x))
+          << what << " " << x << "," << y;
+      ASSERT_EQ(std::bit_cast<std::uint32_t>(static_cast<float>(absolute & 0xFFFF) * rad),
+                std::bit_cast<std::uint32_t>(m.wrapped_high.at<float>(y, x)))
+          << what << " " << x << "," << y;
+    }
+  }
+  EXPECT_GT(valid, 0) << what;
+}
+
+TEST(PhaseEngine, CompactFinalizeMatchesFullFinalize) {
+  // Dark, order-corrupted, saturated and fine columns (as in the flags test), with noise,
+  // at 8 and 16 bits, either set first, every kernel build this CPU runs.
+  for (int bits : {8, 16}) {
+    const double full = (1 << bits) - 1;
+    const double count = full / 255.0;
+    Scene scene = testing::rampScene(smallSize(), 110 * count, 80 * count);
+    scene.modulation.colRange(0, 32).setTo(2.0 * count);
+    scene.low_offset = cv::Mat::zeros(smallSize(), CV_64F);
+    scene.low_offset.colRange(32, 64).setTo(0.3);
+    scene.background.colRange(64, 96).setTo(200.0 * count);
+    scene.modulation.colRange(64, 96).setTo(100.0 * count);
+    for (bool low_first : {false, true}) {
+      for (KernelIsa isa : {KernelIsa::kBaseline, KernelIsa::kAvx2, KernelIsa::kAvx512}) {
+        if (resolveKernelIsa(isa) != isa) continue;  // not on this CPU
+        PhaseOptions o = fixedOptions(bits);
+        o.kernel_isa = isa;
+        PhaseEngine engine(smallSize(), deviceHigh(), deviceLow(), o);
+        testing::FringeRenderer renderer(scene, bits, 0.7 * count, 11);
+        const auto fold_set = [&](FringeSet set, const FringeSetGeometry& g) {
+          for (int k = 0; k < 25; ++k)
+            engine.fold(set, k, renderer.render(set, g, k));
+        };
+        if (low_first) fold_set(FringeSet::Low, deviceLow());
+        fold_set(FringeSet::High, deviceHigh());
+        if (!low_first) fold_set(FringeSet::Low, deviceLow());
+        CompactPhase compact;
+        engine.finalizeCompact(compact);
+        const PhaseMaps maps = engine.finalize();
+        const std::string what = std::to_string(bits) + " bits" + (low_first ? ", low first" : "") +
+                                 ", isa " + std::to_string(static_cast<int>(isa));
+        expectCompactMatchesFull(compact, maps, bits, what);
+        EXPECT_GT(maps.valid_fraction, 0.2) << what;
+        EXPECT_LT(maps.valid_fraction, 0.3) << what;
+        // Reusing the memory gives the same bits.
+        const uchar* data = compact.absolute.data;
+        CompactPhase again = compact;
+        engine.finalizeCompact(compact);
+        EXPECT_EQ(compact.absolute.data, data);
+        EXPECT_TRUE(bitIdentical(compact.absolute, again.absolute)) << what;
+      }
+    }
+  }
+}
+
+TEST(PhaseEngine, CompactFinalizeNeedsTheFixedPathAndAllFrames) {
+  CompactPhase out;
+  PhaseEngine fixed(smallSize(), deviceHigh(), deviceLow(), fixedOptions());
+  EXPECT_THROW(fixed.finalizeCompact(out), std::logic_error);
+  PhaseEngine reference(smallSize(), deviceHigh(), deviceLow(), referenceOptions());
+  EXPECT_THROW(reference.finalizeCompact(out), std::logic_error);
 }
 
 template <typename Exception>
