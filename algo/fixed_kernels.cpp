@@ -91,6 +91,33 @@ CYLSCAN_INLINE_BODY float nanWhere(std::uint32_t mask, float value) {
   return std::bit_cast<float>((std::bit_cast<std::uint32_t>(value) & ~mask) | (kQuietNan & mask));
 }
 
+// What both combines compute for one pixel: the fringe orders, Φ of the high
+// set in binary-angle units, the fused Φ in the same units and the reasons the
+// pixel is invalid (0 when valid).
+struct CombinedPixel {
+  FixedOrders orders;
+  std::int32_t absolute_high;
+  float fused_units;
+  std::uint32_t bad;
+};
+
+CYLSCAN_INLINE_BODY CombinedPixel combinePixel(const FixedUnwrapParams& unwrap,
+                                               const FixedFusionParams& fusion, std::int32_t bound,
+                                               std::uint32_t min_mod, BinaryAngle h, BinaryAngle l,
+                                               std::uint32_t mh, std::uint32_t ml,
+                                               std::uint32_t a) {
+  CombinedPixel px;
+  px.orders = unwrapFixed(unwrap, h, l);
+  const std::int32_t residual = std::abs(px.orders.residual);
+  px.absolute_high = px.orders.high * 65536 + h;
+  const std::int32_t absolute_low = px.orders.low * 65536 + l;
+  px.bad = static_cast<std::uint32_t>(mh < min_mod) * kLowModulationBit |
+           static_cast<std::uint32_t>(ml < min_mod) * kLowModulationBit | (a & 1u) * kSaturatedBit |
+           static_cast<std::uint32_t>(residual > bound) * kOrderInconsistentBit;
+  px.fused_units = fuseFixed(fusion, px.absolute_high, absolute_low, mh, ml);
+  return px;
+}
+
 CYLSCAN_INLINE_BODY std::size_t combineBlock(
     const CombineParams& p, std::size_t n, const BinaryAngle* __restrict phase_high,
     const BinaryAngle* __restrict phase_low, const std::uint16_t* __restrict mod_high,
@@ -113,24 +140,17 @@ CYLSCAN_INLINE_BODY std::size_t combineBlock(
     const std::uint32_t mh = mod_high[i];
     const std::uint32_t ml = mod_low[i];
     const std::uint32_t a = sum_a[i];
-    const FixedOrders orders = unwrapFixed(unwrap, h, l);
-    const std::int32_t residual = std::abs(orders.residual);
-    const std::int32_t absolute_high = orders.high * 65536 + h;
-    const std::int32_t absolute_low = orders.low * 65536 + l;
-    const std::uint32_t bad = static_cast<std::uint32_t>(mh < min_mod) * kLowModulationBit |
-                              static_cast<std::uint32_t>(ml < min_mod) * kLowModulationBit |
-                              (a & 1u) * kSaturatedBit |
-                              static_cast<std::uint32_t>(residual > bound) * kOrderInconsistentBit;
-    const float fused_units = fuseFixed(fusion, absolute_high, absolute_low, mh, ml);
+    const CombinedPixel px = combinePixel(unwrap, fusion, bound, min_mod, h, l, mh, ml, a);
+    const std::uint32_t bad = px.bad;
     wrapped_high[i] = static_cast<float>(h) * rad;
     wrapped_low[i] = static_cast<float>(l) * rad;
     modulation_high[i] = static_cast<float>(mh) * counts_per_code;
     modulation_low[i] = static_cast<float>(ml) * counts_per_code;
     texture[i] = static_cast<float>(static_cast<std::int32_t>(a & ~1u)) * counts_per_texture;
     const std::uint32_t nan_mask = 0u - static_cast<std::uint32_t>(bad != 0);
-    absolute[i] = nanWhere(nan_mask, static_cast<float>(absolute_high) * rad);
-    fused[i] = nanWhere(nan_mask, fused_units * rad);
-    fringe_order[i] = static_cast<std::int16_t>(orders.high);
+    absolute[i] = nanWhere(nan_mask, static_cast<float>(px.absolute_high) * rad);
+    fused[i] = nanWhere(nan_mask, px.fused_units * rad);
+    fringe_order[i] = static_cast<std::int16_t>(px.orders.high);
     invalid[i] = static_cast<std::uint8_t>(bad);
     valid += bad == 0 ? 1 : 0;
   }
@@ -158,23 +178,16 @@ CYLSCAN_INLINE_BODY std::size_t combineCompactBlock(
     const std::uint32_t mh = mod_high[i];
     const std::uint32_t ml = mod_low[i];
     const std::uint32_t a = sum_a[i];
-    const FixedOrders orders = unwrapFixed(unwrap, h, l);
-    const std::int32_t residual = std::abs(orders.residual);
-    const std::int32_t absolute_high = orders.high * 65536 + h;
-    const std::int32_t absolute_low = orders.low * 65536 + l;
-    const std::uint32_t bad = static_cast<std::uint32_t>(mh < min_mod) * kLowModulationBit |
-                              static_cast<std::uint32_t>(ml < min_mod) * kLowModulationBit |
-                              (a & 1u) * kSaturatedBit |
-                              static_cast<std::uint32_t>(residual > bound) * kOrderInconsistentBit;
-    const float fused_units = fuseFixed(fusion, absolute_high, absolute_low, mh, ml);
+    const CombinedPixel px = combinePixel(unwrap, fusion, bound, min_mod, h, l, mh, ml, a);
+    const std::uint32_t bad = px.bad;
     float code = static_cast<float>(static_cast<std::int32_t>(a & ~1u)) * texture_code_per_sum;
     code = code + 0.5f;
     code = code < 65535.0f ? code : 65535.0f;
     code = code > 0.0f ? code : 0.0f;
     const std::uint32_t mask = 0u - static_cast<std::uint32_t>(bad != 0);
-    absolute[i] = static_cast<std::int32_t>((static_cast<std::uint32_t>(absolute_high) & ~mask) |
+    absolute[i] = static_cast<std::int32_t>((static_cast<std::uint32_t>(px.absolute_high) & ~mask) |
                                             (kInvalidAbsolute & mask));
-    fused[i] = nanWhere(mask, fused_units);
+    fused[i] = nanWhere(mask, px.fused_units);
     invalid[i] = static_cast<std::uint8_t>(bad);
     texture[i] = static_cast<std::uint16_t>(static_cast<std::int32_t>(code));
     valid += bad == 0 ? 1 : 0;
