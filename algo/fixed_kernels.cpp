@@ -101,20 +101,19 @@ struct CombinedPixel {
   std::uint32_t bad;
 };
 
-CYLSCAN_INLINE_BODY CombinedPixel combinePixel(const FixedUnwrapParams& unwrap,
-                                               const FixedFusionParams& fusion, std::int32_t bound,
-                                               std::uint32_t min_mod, BinaryAngle h, BinaryAngle l,
+CYLSCAN_INLINE_BODY CombinedPixel combinePixel(const CombineParams& p, BinaryAngle h, BinaryAngle l,
                                                std::uint32_t mh, std::uint32_t ml,
                                                std::uint32_t a) {
   CombinedPixel px;
-  px.orders = unwrapFixed(unwrap, h, l);
+  px.orders = unwrapFixed(p.unwrap, h, l);
   const std::int32_t residual = std::abs(px.orders.residual);
   px.absolute_high = px.orders.high * 65536 + h;
   const std::int32_t absolute_low = px.orders.low * 65536 + l;
-  px.bad = static_cast<std::uint32_t>(mh < min_mod) * kLowModulationBit |
-           static_cast<std::uint32_t>(ml < min_mod) * kLowModulationBit | (a & 1u) * kSaturatedBit |
-           static_cast<std::uint32_t>(residual > bound) * kOrderInconsistentBit;
-  px.fused_units = fuseFixed(fusion, px.absolute_high, absolute_low, mh, ml);
+  px.bad = static_cast<std::uint32_t>(mh < p.min_modulation) * kLowModulationBit |
+           static_cast<std::uint32_t>(ml < p.min_modulation) * kLowModulationBit |
+           (a & 1u) * kSaturatedBit |
+           static_cast<std::uint32_t>(residual > p.residual_bound) * kOrderInconsistentBit;
+  px.fused_units = fuseFixed(p.fusion, px.absolute_high, absolute_low, mh, ml);
   return px;
 }
 
@@ -126,10 +125,7 @@ CYLSCAN_INLINE_BODY std::size_t combineBlock(
     float* __restrict modulation_high, float* __restrict modulation_low, float* __restrict texture,
     float* __restrict absolute, float* __restrict fused, std::int16_t* __restrict fringe_order,
     std::uint8_t* __restrict invalid) {
-  const FixedUnwrapParams unwrap = p.unwrap;
-  const FixedFusionParams fusion = p.fusion;
-  const std::int32_t bound = p.residual_bound;
-  const std::uint32_t min_mod = p.min_modulation;
+  const CombineParams params = p;  // a local copy: nothing the loop stores can alias it
   const float rad = p.radians_per_unit;
   const float counts_per_code = p.counts_per_code;
   const float counts_per_texture = p.counts_per_texture;
@@ -140,7 +136,7 @@ CYLSCAN_INLINE_BODY std::size_t combineBlock(
     const std::uint32_t mh = mod_high[i];
     const std::uint32_t ml = mod_low[i];
     const std::uint32_t a = sum_a[i];
-    const CombinedPixel px = combinePixel(unwrap, fusion, bound, min_mod, h, l, mh, ml, a);
+    const CombinedPixel px = combinePixel(params, h, l, mh, ml, a);
     const std::uint32_t bad = px.bad;
     wrapped_high[i] = static_cast<float>(h) * rad;
     wrapped_low[i] = static_cast<float>(l) * rad;
@@ -165,10 +161,7 @@ CYLSCAN_INLINE_BODY std::size_t combineCompactBlock(
     const std::uint16_t* __restrict mod_low, const std::uint32_t* __restrict sum_a,
     std::int32_t* __restrict absolute, float* __restrict fused, std::uint8_t* __restrict invalid,
     std::uint16_t* __restrict texture) {
-  const FixedUnwrapParams unwrap = p.unwrap;
-  const FixedFusionParams fusion = p.fusion;
-  const std::int32_t bound = p.residual_bound;
-  const std::uint32_t min_mod = p.min_modulation;
+  const CombineParams params = p;  // a local copy: nothing the loop stores can alias it
   const float texture_code_per_sum = p.texture_code_per_sum;
   constexpr std::uint32_t kInvalidAbsolute = 0x80000000u;  // INT32_MIN
   std::size_t valid = 0;
@@ -178,7 +171,7 @@ CYLSCAN_INLINE_BODY std::size_t combineCompactBlock(
     const std::uint32_t mh = mod_high[i];
     const std::uint32_t ml = mod_low[i];
     const std::uint32_t a = sum_a[i];
-    const CombinedPixel px = combinePixel(unwrap, fusion, bound, min_mod, h, l, mh, ml, a);
+    const CombinedPixel px = combinePixel(params, h, l, mh, ml, a);
     const std::uint32_t bad = px.bad;
     float code = static_cast<float>(static_cast<std::int32_t>(a & ~1u)) * texture_code_per_sum;
     code = code + 0.5f;

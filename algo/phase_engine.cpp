@@ -215,11 +215,17 @@ const PhaseOptions& PhaseEngine::options() const {
   return impl_->setup.options;
 }
 
+namespace {
+// Keeps a map's memory when it already has the size and type, so a scan loop
+// that finalizes into the same maps allocates nothing.
+void reuseOrCreate(cv::Mat& m, cv::Size size, int type) {
+  if (!m.isContinuous() || m.size() != size || m.type() != type) m.release();
+  m.create(size, type);
+}
+}  // namespace
+
 void preparePhaseMaps(PhaseMaps& maps, cv::Size size) {
-  const auto prepare = [&](cv::Mat& m, int type) {
-    if (!m.isContinuous() || m.size() != size || m.type() != type) m.release();
-    m.create(size, type);
-  };
+  const auto prepare = [&](cv::Mat& m, int type) { reuseOrCreate(m, size, type); };
   prepare(maps.wrapped_high, CV_32FC1);
   prepare(maps.wrapped_low, CV_32FC1);
   prepare(maps.modulation_high, CV_32FC1);
@@ -233,10 +239,7 @@ void preparePhaseMaps(PhaseMaps& maps, cv::Size size) {
 }
 
 void prepareCompactPhase(CompactPhase& out, cv::Size size) {
-  const auto prepare = [&](cv::Mat& m, int type) {
-    if (!m.isContinuous() || m.size() != size || m.type() != type) m.release();
-    m.create(size, type);
-  };
+  const auto prepare = [&](cv::Mat& m, int type) { reuseOrCreate(m, size, type); };
   prepare(out.absolute, CV_32SC1);
   prepare(out.fused, CV_32FC1);
   prepare(out.invalid, CV_8UC1);
