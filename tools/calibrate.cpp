@@ -37,6 +37,7 @@
 #include "formats/stereo_calibration.hpp"
 #include "tools/bundle_phase.hpp"
 #include "tools/commands.hpp"
+#include "tools/plane_pose.hpp"
 #include "tools/stereo_geometry.hpp"
 #include "tools/stopwatch.hpp"
 
@@ -44,9 +45,6 @@ namespace cylscan::tools {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
-// Below this many stereo points a pose's plane is not trusted.
-constexpr std::size_t kMinStereoPoints = 100;
 
 struct CalibrateRequest {
   std::string stereo;
@@ -57,20 +55,6 @@ struct CalibrateRequest {
   double plane_tolerance_mm = 0.5;
   bool stereo_pixels_only = false;
   bool json = false;
-};
-
-// What one pose contributes, and what the residual pass needs of it.
-struct Pose {
-  std::string bundle;
-  algo::Plane plane;
-  cv::Mat phase;  // CV_32F, NaN where the pixel is not used
-  std::size_t stereo_points = 0;
-  std::size_t plane_inliers = 0;
-  double plane_rmse_mm = 0;
-  double main_valid_fraction = 0;
-  double aux_valid_fraction = 0;
-  std::size_t target_pixels = 0;
-  double ms = 0;
 };
 
 std::vector<formats::CaptureBundleReader> openBundles(const CalibrateRequest& request) {
@@ -92,67 +76,6 @@ void requireSizes(const std::vector<formats::CaptureBundleReader>& bundles,
   }
 }
 
-algo::Points3d toPoints(const std::vector<cv::Point3f>& points) {
-  algo::Points3d out;
-  out.reserve(points.size());
-  for (const auto& p : points)
-    out.emplace_back(p.x, p.y, p.z);
-  return out;
-}
-
-// The main phase where the pixel is used for this pose, NaN elsewhere.
-cv::Mat maskedPhase(const cv::Mat& phase, const algo::PhaseStereoResult& stereo,
-                    const algo::RobustPlaneFit& plane, bool stereo_pixels_only) {
-  cv::Mat use(phase.size(), CV_8U, cv::Scalar(stereo_pixels_only ? 0 : 1));
-  for (std::size_t i = 0; i < stereo.pixels.size(); ++i) {
-    use.at<std::uint8_t>(stereo.pixels[i]) = plane.inliers[i];
-  }
-  cv::Mat out = phase.clone();
-  out.setTo(kNaNf, use == 0);
-  return out;
-}
-
-class PoseMeasurer {
- public:
-  PoseMeasurer(const formats::StereoCalibration& stereo, const CalibrateRequest& request)
-      : stereo_(toStereoGeometry(stereo)),
-        choice_(parsePhaseChoice(request.phase)),
-        request_(request) {}
-
-  Pose measure(const formats::CaptureBundleReader& bundle) const {
-    Stopwatch watch;
-    const BundlePhase main = computeBundlePhase(bundle, "main");
-    const BundlePhase aux = computeBundlePhase(bundle, "aux");
-    const cv::Mat& phase = absolutePhase(main.maps, choice_);
-    const algo::PhaseStereoResult points =
-        stereo_.reconstruct(phase, absolutePhase(aux.maps, choice_));
-    Pose pose;
-    pose.bundle = bundle.dir().string();
-    pose.stereo_points = points.points.size();
-    if (pose.stereo_points < kMinStereoPoints) {
-      throw formats::InputError(bundle.dir(), "only " + std::to_string(pose.stereo_points) +
-                                                  " stereo points; the plane needs at least " +
-                                                  std::to_string(kMinStereoPoints));
-    }
-    algo::RobustPlaneOptions options;
-    options.inlier_threshold_mm = request_.plane_tolerance_mm;
-    const algo::RobustPlaneFit plane = algo::fitPlaneRobust(toPoints(points.points), options);
-    pose.plane = plane.fit.plane;
-    pose.plane_inliers = plane.inlier_count;
-    pose.plane_rmse_mm = plane.fit.rmse;
-    pose.phase = maskedPhase(phase, points, plane, request_.stereo_pixels_only);
-    pose.main_valid_fraction = main.maps.valid_fraction;
-    pose.aux_valid_fraction = aux.maps.valid_fraction;
-    pose.ms = watch.elapsedMs();
-    return pose;
-  }
-
- private:
-  algo::PhaseStereo stereo_;
-  PhaseChoice choice_;
-  const CalibrateRequest& request_;
-};
-
 std::size_t finiteCount(const cv::Mat& phase) {
   std::size_t count = 0;
   for (int v = 0; v < phase.rows; ++v) {
@@ -167,13 +90,13 @@ nlohmann::json vec(const Eigen::Vector3d& v) {
   return {v.x(), v.y(), v.z()};
 }
 
-nlohmann::json summaryJson(const CalibrateRequest& request, const std::vector<Pose>& poses,
+nlohmann::json summaryJson(const CalibrateRequest& request, const std::vector<PlanePose>& poses,
                            const algo::QuasiCalibration& calib,
                            const algo::CalibrationResiduals& residuals,
                            const nlohmann::json& timings) {
   nlohmann::json pose_list = nlohmann::json::array();
   for (std::size_t i = 0; i < poses.size(); ++i) {
-    const Pose& p = poses[i];
+    const PlanePose& p = poses[i];
     const algo::PoseResidual& r = residuals.poses[i];
     pose_list.push_back(
         {{"bundle", p.bundle},
@@ -204,7 +127,7 @@ nlohmann::json summaryJson(const CalibrateRequest& request, const std::vector<Po
           {"out", request.out}};
 }
 
-void printSummary(const std::vector<Pose>& poses, const algo::QuasiCalibration& calib,
+void printSummary(const std::vector<PlanePose>& poses, const algo::QuasiCalibration& calib,
                   const algo::CalibrationResiduals& residuals) {
   std::cout << std::fixed << std::setprecision(3);
   std::cout << "calibrate: " << poses.size() << " poses, " << calib.validCount() << " of "
@@ -231,16 +154,20 @@ void runCalibrate(const CalibrateRequest& request) {
   requireSizes(bundles, stereo, request.stereo);
 
   const algo::RayMap rays(mainCamera(stereo));
-  const PoseMeasurer measurer(stereo, request);
+  PlanePoseOptions pose_options;
+  pose_options.phase = choice;
+  pose_options.plane_tolerance_mm = request.plane_tolerance_mm;
+  pose_options.stereo_pixels_only = request.stereo_pixels_only;
+  const PlanePoseMeasurer measurer(toStereoGeometry(stereo), pose_options);
   algo::QuasiCalibrationOptions options;
   options.min_poses = request.min_poses;
   options.phase_source =
       choice == PhaseChoice::kHigh ? algo::PhaseSource::kHigh : algo::PhaseSource::kFused;
   algo::QuasiCalibrationFitter fitter(rays.size(), options);
-  std::vector<Pose> poses;
+  std::vector<PlanePose> poses;
   Stopwatch watch;
   for (const auto& bundle : bundles) {
-    Pose pose = measurer.measure(bundle);
+    PlanePose pose = measurer.measure(bundle);
     const cv::Mat target = algo::intersectRaysWithPlane(rays, pose.plane);
     fitter.addPose(pose.phase, target);
     pose.target_pixels = finiteCount(pose.phase);

@@ -11,5 +11,6 @@ void addCalibrateStereoCommand(CLI::App& app);
 void addCalibrateCommand(CLI::App& app);
 void addReconstructCommand(CLI::App& app);
 void addEvaluateCommand(CLI::App& app);
+void addRefineStereoCommand(CLI::App& app);
 
 }  // namespace cylscan::tools

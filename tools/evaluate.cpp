@@ -22,6 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include "algo/surface_fit.hpp"
+#include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
 #include "formats/point_cloud.hpp"
 #include "tools/commands.hpp"
@@ -34,6 +35,8 @@ namespace fs = std::filesystem;
 struct EvaluateRequest {
   std::string cloud;
   double radius = 0;
+  std::string truth;  // truth.json of a simulated dataset (spec §6)
+  std::string scene;  // the scene of the cloud in it
   bool json = false;
 };
 
@@ -90,10 +93,86 @@ nlohmann::json number(double value) {
   return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
 }
 
+// The true surface of `scene` in a truth.json (spec §6): a plane or a sphere.
+struct TrueSurface {
+  std::optional<algo::Plane> plane;
+  std::optional<algo::Sphere> sphere;
+};
+
+Eigen::Vector3d vec3(const nlohmann::json& j, const fs::path& file, const std::string& key) {
+  if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() || !j[2].is_number())
+    throw formats::InputError(file, "'" + key + "' must be an array of 3 numbers");
+  return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
+}
+
+TrueSurface readTrueSurface(const fs::path& file, const std::string& scene) {
+  const nlohmann::json truth = formats::readJsonFile(file, 64u << 20);
+  const nlohmann::json* entry = nullptr;
+  for (const char* group : {"scenes", "calib"}) {
+    if (truth.contains(group) && truth[group].is_object() && truth[group].contains(scene))
+      entry = &truth[group][scene];
+  }
+  if (entry == nullptr || !entry->is_object())
+    throw formats::InputError(file, "has no scene '" + scene + "' under \"scenes\" or \"calib\"");
+  const std::string type = entry->value("type", "");
+  const std::string where = scene + ".";
+  TrueSurface surface;
+  if (type == "plane") {
+    algo::Plane plane;
+    plane.point = vec3(entry->value("point", nlohmann::json()), file, where + "point");
+    plane.normal =
+        vec3(entry->value("normal", nlohmann::json()), file, where + "normal").normalized();
+    surface.plane = plane;
+  } else if (type == "sphere") {
+    algo::Sphere sphere;
+    sphere.centre = vec3(entry->value("center", nlohmann::json()), file, where + "center");
+    const nlohmann::json radius = entry->value("radius", nlohmann::json());
+    if (!radius.is_number() || !(radius.get<double>() > 0))
+      throw formats::InputError(file, "'" + where + "radius' must be a positive number");
+    sphere.radius = radius.get<double>();
+    surface.sphere = sphere;
+  } else {
+    throw formats::InputError(file,
+                              "scene '" + scene + "' is a '" + type +
+                                  "'; only plane and sphere scenes have a single true surface");
+  }
+  return surface;
+}
+
+// The cloud against the true surface: signed distances (RMSE, mean, STD).
+std::optional<nlohmann::json> truthComparison(const EvaluateRequest& request,
+                                              const algo::Points3d& points) {
+  if (request.truth.empty()) return std::nullopt;
+  if (request.scene.empty()) throw std::invalid_argument("evaluate: --truth needs --scene");
+  const TrueSurface surface = readTrueSurface(request.truth, request.scene);
+  const std::vector<double> d = surface.plane ? algo::planeResiduals(points, *surface.plane)
+                                              : algo::sphereResiduals(points, *surface.sphere);
+  const algo::ResidualStats stats = algo::residualStats(d);
+  nlohmann::json out = {{"scene", request.scene},
+                        {"rmse_mm", stats.rmse},
+                        {"mean_mm", stats.mean},
+                        {"std_mm", stats.std},
+                        {"points", stats.count}};
+  if (surface.sphere) {
+    out["center"] = vec(surface.sphere->centre);
+    out["radius_mm"] = surface.sphere->radius;
+  }
+  return out;
+}
+
+void printTruth(const std::optional<nlohmann::json>& truth) {
+  if (!truth) return;
+  std::cout << "  against the true surface of '" << truth->at("scene").get<std::string>()
+            << "': RMSE " << truth->at("rmse_mm").get<double>() << " mm, mean "
+            << truth->at("mean_mm").get<double>() << " mm, STD "
+            << truth->at("std_mm").get<double>() << " mm\n";
+}
+
 void runPlane(const EvaluateRequest& request) {
   const CloudPoints cloud = loadPoints(request.cloud, 3, "plane");
   const algo::PlaneFit fit =
       fitOrInputError(request.cloud, [&] { return algo::fitPlane(cloud.points); });
+  const std::optional<nlohmann::json> truth = truthComparison(request, cloud.points);
   std::optional<algo::RegionalRmse> regional;
   if (cloud.has_u) {
     const auto [lo, hi] = std::minmax_element(cloud.u.begin(), cloud.u.end());
@@ -114,6 +193,7 @@ void runPlane(const EvaluateRequest& request) {
                          {"central_points", regional->central_count},
                          {"outer_points", regional->outer_count}};
     }
+    if (truth) out["truth"] = *truth;
     std::cout << out.dump() << "\n";
     return;
   }
@@ -123,6 +203,7 @@ void runPlane(const EvaluateRequest& request) {
     std::cout << "  regional RMSE: central 30 % " << regional->central << " mm, outer 30 % "
               << regional->outer << " mm\n";
   }
+  printTruth(truth);
 }
 
 void runSphere(const EvaluateRequest& request) {
@@ -131,23 +212,28 @@ void runSphere(const EvaluateRequest& request) {
       fitOrInputError(request.cloud, [&] { return algo::fitSphere(cloud.points); });
   const algo::FixedRadiusSphereFit fixed = fitOrInputError(
       request.cloud, [&] { return algo::fitSphereFixedRadius(cloud.points, request.radius); });
+  std::optional<nlohmann::json> truth = truthComparison(request, cloud.points);
+  if (truth && truth->contains("center")) {
+    (*truth)["centre_offset_mm"] =
+        vec(free.sphere.centre - vec3(truth->at("center"), request.truth, "center"));
+  }
   if (request.json) {
-    std::cout << nlohmann::json{{"shape", "sphere"},
-                                {"cloud", request.cloud},
-                                {"points", free.count},
-                                {"dropped_points", cloud.dropped},
-                                {"free",
-                                 {{"radius_mm", free.sphere.radius},
-                                  {"rmse_mm", free.rmse},
-                                  {"centre", vec(free.sphere.centre)}}},
-                                {"reference",
-                                 {{"radius_mm", request.radius},
-                                  {"rmse_mm", fixed.residuals.rmse},
-                                  {"mean_mm", fixed.residuals.mean},
-                                  {"std_mm", fixed.residuals.std},
-                                  {"centre", vec(fixed.sphere.centre)}}}}
-                     .dump()
-              << "\n";
+    nlohmann::json out{{"shape", "sphere"},
+                       {"cloud", request.cloud},
+                       {"points", free.count},
+                       {"dropped_points", cloud.dropped},
+                       {"free",
+                        {{"radius_mm", free.sphere.radius},
+                         {"rmse_mm", free.rmse},
+                         {"centre", vec(free.sphere.centre)}}},
+                       {"reference",
+                        {{"radius_mm", request.radius},
+                         {"rmse_mm", fixed.residuals.rmse},
+                         {"mean_mm", fixed.residuals.mean},
+                         {"std_mm", fixed.residuals.std},
+                         {"centre", vec(fixed.sphere.centre)}}}};
+    if (truth) out["truth"] = *truth;
+    std::cout << out.dump() << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "sphere: " << free.count
@@ -155,6 +241,7 @@ void runSphere(const EvaluateRequest& request) {
             << " mm\n  reference R = " << request.radius << " mm: RMSE " << fixed.residuals.rmse
             << " mm, mean " << fixed.residuals.mean << " mm, STD " << fixed.residuals.std
             << " mm\n";
+  printTruth(truth);
 }
 
 }  // namespace
@@ -166,6 +253,9 @@ void addEvaluateCommand(CLI::App& app) {
   auto plane = std::make_shared<EvaluateRequest>();
   CLI::App* plane_cmd = cmd->add_subcommand("plane", "least-squares plane RMSE of a cloud");
   plane_cmd->add_option("cloud", plane->cloud, "point cloud (PLY)")->required();
+  plane_cmd->add_option("--truth", plane->truth,
+                        "truth.json of a simulated dataset: also compare with the true surface");
+  plane_cmd->add_option("--scene", plane->scene, "the cloud's scene in --truth (e.g. sphere_1)");
   plane_cmd->add_flag("--json", plane->json, "print the result as one JSON object");
   plane_cmd->callback([plane] { runPlane(*plane); });
 
@@ -176,6 +266,9 @@ void addEvaluateCommand(CLI::App& app) {
   sphere_cmd->add_option("--radius", sphere->radius, "reference radius R (mm)")
       ->required()
       ->check(CLI::PositiveNumber);
+  sphere_cmd->add_option("--truth", sphere->truth,
+                         "truth.json of a simulated dataset: also compare with the true surface");
+  sphere_cmd->add_option("--scene", sphere->scene, "the cloud's scene in --truth (e.g. sphere_1)");
   sphere_cmd->add_flag("--json", sphere->json, "print the result as one JSON object");
   sphere_cmd->callback([sphere] { runSphere(*sphere); });
 }

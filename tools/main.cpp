@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   cylscan::tools::addPhaseCommand(app);
   cylscan::tools::addSimulateCommand(app);
   cylscan::tools::addCalibrateStereoCommand(app);
+  cylscan::tools::addRefineStereoCommand(app);
   cylscan::tools::addCalibrateCommand(app);
   cylscan::tools::addReconstructCommand(app);
   cylscan::tools::addEvaluateCommand(app);

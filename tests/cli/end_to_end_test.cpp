@@ -200,6 +200,49 @@ class EndToEnd : public ::testing::Test {
     EXPECT_GE(spheres, 1);
   }
 
+  // evaluate --truth measures the same distances as this test's own code.
+  void checkTruthComparison() {
+    const json t = truth().at("scenes").at("sphere_1");
+    const fs::path ply = out("sphere_1.ply");
+    ASSERT_TRUE(fs::exists(ply));
+    const json ev = evaluate(
+        "sphere --radius 50 --truth " + (data() / "truth.json").string() + " --scene sphere_1",
+        ply);
+    const DistanceStats d = distancesToTruth(ply, t);
+    EXPECT_NEAR(ev.at("truth").at("rmse_mm").get<double>(), d.rms, 1e-6);
+    EXPECT_NEAR(ev.at("truth").at("mean_mm").get<double>(), d.mean, 1e-6);
+    const Eigen::Vector3d offset = vec(ev.at("free").at("centre")) - vec(t.at("center"));
+    EXPECT_NEAR((vec(ev.at("truth").at("centre_offset_mm")) - offset).norm(), 0.0, 1e-9);
+    const auto missing =
+        runTool("evaluate sphere --radius 50 --truth " + (data() / "truth.json").string() +
+                " --scene nope " + ply.string());
+    EXPECT_EQ(missing.exit_code, 2);
+    EXPECT_NE(missing.output.find("no scene 'nope'"), std::string::npos) << missing.output;
+  }
+
+  // refine-stereo makes the pair consistent with the phase of the plane
+  // poses: the equal-phase residual falls, the checkerboards stay as well fitted.
+  void checkRefinedStereo() {
+    const auto run = runTool(
+        "refine-stereo --json --samples 800 --stereo " + out("stereo.yaml").string() + " --board " +
+        (data() / "board").string() + " --truth " + (data() / "stereo_truth.yaml").string() +
+        " --out " + out("refined.yaml").string() + calibPoses());
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    const json s = parseJson(run);
+    std::cout << "[e2e] refine-stereo: before " << s.at("before").dump() << " after "
+              << s.at("after").dump() << " truth " << s.at("truth").dump() << "\n";
+    EXPECT_LT(s.at("after").at("phase_rms_px").get<double>(),
+              0.9 * s.at("before").at("phase_rms_px").get<double>());
+    EXPECT_LT(s.at("after").at("board_aux_rms_px").get<double>(),
+              1.05 * s.at("before").at("board_aux_rms_px").get<double>());
+    EXPECT_LT(s.at("after").at("board_main_rms_px").get<double>(),
+              1.05 * s.at("before").at("board_main_rms_px").get<double>());
+    const auto refined = formats::readStereoCalibration(out("refined.yaml"));
+    const auto truth_file = formats::readStereoCalibration(data() / "stereo_truth.yaml");
+    expectFocalWithin(refined.camera_matrix_main, truth_file.camera_matrix_main, 0.01, "main");
+    EXPECT_NEAR(cv::norm(refined.T) / cv::norm(truth_file.T), 1.0, 0.01);
+  }
+
   void checkPlane() {
     ASSERT_TRUE(fs::exists(out("calib.qcal")));
     const json t = truth().at("scenes").at("plane");
@@ -263,8 +306,16 @@ TEST_F(EndToEnd, SimulateCalibrateReconstructEvaluate) {
     checkSpheres();
   }
   {
+    SCOPED_TRACE("evaluate against truth");
+    checkTruthComparison();
+  }
+  {
     SCOPED_TRACE("plane");
     checkPlane();
+  }
+  {
+    SCOPED_TRACE("refine-stereo");
+    checkRefinedStereo();
   }
   {
     SCOPED_TRACE("stereo method");

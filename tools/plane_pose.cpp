@@ -1,0 +1,83 @@
+#include "tools/plane_pose.hpp"
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "algo/surface_fit.hpp"
+#include "formats/input_error.hpp"
+#include "tools/stopwatch.hpp"
+
+namespace cylscan::tools {
+namespace {
+
+constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+// Below this many stereo points a pose's plane is not trusted.
+constexpr std::size_t kMinStereoPoints = 100;
+
+algo::Points3d toPoints(const std::vector<cv::Point3f>& points) {
+  algo::Points3d out;
+  out.reserve(points.size());
+  for (const auto& p : points)
+    out.emplace_back(p.x, p.y, p.z);
+  return out;
+}
+
+cv::Mat inlierMask(cv::Size size, const algo::PhaseStereoResult& stereo,
+                   const algo::RobustPlaneFit& plane) {
+  cv::Mat mask(size, CV_8U, cv::Scalar(0));
+  for (std::size_t i = 0; i < stereo.pixels.size(); ++i)
+    mask.at<std::uint8_t>(stereo.pixels[i]) = plane.inliers[i] ? 1 : 0;
+  return mask;
+}
+
+// The main phase where the pixel is used for this pose, NaN elsewhere: a
+// pixel with a stereo point must be an inlier; one without needs
+// !stereo_pixels_only.
+cv::Mat maskedPhase(const cv::Mat& phase, const algo::PhaseStereoResult& stereo,
+                    const cv::Mat& inliers, bool stereo_pixels_only) {
+  cv::Mat use(phase.size(), CV_8U, cv::Scalar(stereo_pixels_only ? 0 : 1));
+  for (const auto& pixel : stereo.pixels)
+    use.at<std::uint8_t>(pixel) = inliers.at<std::uint8_t>(pixel);
+  cv::Mat out = phase.clone();
+  out.setTo(kNaNf, use == 0);
+  return out;
+}
+
+}  // namespace
+
+PlanePoseMeasurer::PlanePoseMeasurer(const algo::StereoGeometry& stereo, PlanePoseOptions options)
+    : stereo_(stereo), options_(options) {}
+
+PlanePose PlanePoseMeasurer::measure(const formats::CaptureBundleReader& bundle) const {
+  Stopwatch watch;
+  const BundlePhase main = computeBundlePhase(bundle, "main");
+  const BundlePhase aux = computeBundlePhase(bundle, "aux");
+  const cv::Mat& phase = absolutePhase(main.maps, options_.phase);
+  const cv::Mat& phase_aux = absolutePhase(aux.maps, options_.phase);
+  const algo::PhaseStereoResult points = stereo_.reconstruct(phase, phase_aux);
+  PlanePose pose;
+  pose.bundle = bundle.dir().string();
+  pose.stereo_points = points.points.size();
+  if (pose.stereo_points < kMinStereoPoints) {
+    throw formats::InputError(bundle.dir(), "only " + std::to_string(pose.stereo_points) +
+                                                " stereo points; the plane needs at least " +
+                                                std::to_string(kMinStereoPoints));
+  }
+  algo::RobustPlaneOptions options;
+  options.inlier_threshold_mm = options_.plane_tolerance_mm;
+  const algo::RobustPlaneFit plane = algo::fitPlaneRobust(toPoints(points.points), options);
+  pose.plane = plane.fit.plane;
+  pose.plane_inliers = plane.inlier_count;
+  pose.plane_rmse_mm = plane.fit.rmse;
+  pose.stereo_inliers = inlierMask(phase.size(), points, plane);
+  pose.phase = maskedPhase(phase, points, pose.stereo_inliers, options_.stereo_pixels_only);
+  if (options_.keep_aux_phase) pose.phase_aux = phase_aux.clone();
+  pose.main_valid_fraction = main.maps.valid_fraction;
+  pose.aux_valid_fraction = aux.maps.valid_fraction;
+  pose.ms = watch.elapsedMs();
+  return pose;
+}
+
+}  // namespace cylscan::tools

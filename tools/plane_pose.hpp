@@ -1,0 +1,55 @@
+// Shared by calibrate and refine-stereo: one plane pose of the calibration
+// (a capture bundle with main and aux), measured the paper's way: the
+// absolute phase of both cameras, the phase-based stereo points, and a robust
+// plane fit of those points, the noise-reduced reference geometry of the board.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "algo/geometry.hpp"
+#include "algo/phase_stereo.hpp"
+#include "formats/capture_bundle.hpp"
+#include "tools/bundle_phase.hpp"
+
+namespace cylscan::tools {
+
+struct PlanePoseOptions {
+  PhaseChoice phase = PhaseChoice::kFused;
+  double plane_tolerance_mm = 0.5;  // stereo points farther from the plane are outliers
+  // The main pixels a pose uses: all valid ones (a pixel aux cannot see still
+  // has a ray and a plane), or only those with a stereo point on the plane.
+  bool stereo_pixels_only = false;
+  bool keep_aux_phase = false;
+};
+
+struct PlanePose {
+  std::string bundle;
+  algo::Plane plane;
+  cv::Mat phase;           // main, CV_32F, NaN where the pixel is not used
+  cv::Mat phase_aux;       // aux, CV_32F (only with keep_aux_phase)
+  cv::Mat stereo_inliers;  // CV_8U: main pixels whose stereo point is on the plane
+  std::size_t stereo_points = 0;
+  std::size_t plane_inliers = 0;
+  double plane_rmse_mm = 0;
+  double main_valid_fraction = 0;
+  double aux_valid_fraction = 0;
+  std::size_t target_pixels = 0;
+  double ms = 0;
+};
+
+class PlanePoseMeasurer {
+ public:
+  PlanePoseMeasurer(const algo::StereoGeometry& stereo, PlanePoseOptions options);
+
+  // InputError naming the bundle when it yields too few stereo points for a plane.
+  PlanePose measure(const formats::CaptureBundleReader& bundle) const;
+
+ private:
+  algo::PhaseStereo stereo_;
+  PlanePoseOptions options_;
+};
+
+}  // namespace cylscan::tools
