@@ -120,6 +120,7 @@ TEST(Board, ASceneIsOnlyForTheVirtualHead) {
 
 TEST(Board, AHardwareBoardWithoutItsDevicesSaysWhichIsMissing) {
   if (std::filesystem::exists("/dev/video0")) GTEST_SKIP() << "this machine has /dev/video0";
+#ifdef CYLSCAN_HAVE_GPIOD
   try {
     Board::open(boardDir("rpi5-v4l2"));
     FAIL() << "opened a board whose camera does not exist";
@@ -128,7 +129,42 @@ TEST(Board, AHardwareBoardWithoutItsDevicesSaysWhichIsMissing) {
     EXPECT_NE(what.find("/dev/video0"), std::string::npos) << what;
     EXPECT_NE(what.find("'main'"), std::string::npos) << what;
   }
+#else
+  // Without the gpiod backend the board cannot have its lines, and says so.
+  try {
+    Board::open(boardDir("rpi5-v4l2"));
+    FAIL() << "opened a hardware board without a GPIO backend";
+  } catch (const GpioError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("rpi5-v4l2"), std::string::npos) << what;
+    EXPECT_NE(what.find("CYLSCAN_WITH_GPIOD"), std::string::npos) << what;
+  }
+#endif
 }
+
+#ifdef CYLSCAN_HAVE_GPIOD
+// A libcamera camera that is not there (or a build without libcamera).
+TEST(Board, AMissingLibcameraCameraIsAnErrorNamingIt) {
+  if (std::filesystem::exists("/dev/media0")) GTEST_SKIP() << "this machine has media devices";
+  TempDir dir;
+  std::string text = test::hardwareGpio() + test::v4l2Main();
+  text.replace(text.find("\"v4l2\""), 6, "\"libcamera\"");
+  text.replace(text.find("\"/dev/video0\""), 13, "\"0\"");
+  dir.write("board.toml", text);
+  try {
+    Board::open(dir.path());
+    FAIL() << "opened a libcamera camera on a machine without cameras";
+  } catch (const CameraError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("'main'"), std::string::npos) << what;
+#ifdef CYLSCAN_HAVE_LIBCAMERA
+    EXPECT_NE(what.find("no such camera"), std::string::npos) << what;
+#else
+    EXPECT_NE(what.find("CYLSCAN_WITH_LIBCAMERA"), std::string::npos) << what;
+#endif
+  }
+}
+#endif
 
 TEST(Board, ABadProfileIsAConfigError) {
   TempDir dir;
