@@ -16,12 +16,60 @@ PKGS=(
   libgtest-dev libgmock-dev
   libbenchmark-dev
 )
+# Hardware backends, from bookworm-backports (bookworm's libgpiod is v1, its
+# libcamera 0.0.3): the libgpiod v2 C++ bindings and libcamera 0.3.
+# Each with the oldest version that has the API the backends use.
+BACKPORTS_PKGS=(
+  "libgpiod-dev 2.0"       # GPIO lines (drivers/gpio_gpiod.cpp)
+  "libcamera-dev 0.3"      # cameras through libcamera (drivers/camera_libcamera.cpp)
+)
+BACKPORTS_SOURCES=/etc/apt/sources.list.d/bookworm-backports.sources
+
+installed() {
+  dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"
+}
+# installed PACKAGE MIN_VERSION: installed at MIN_VERSION or later.
+installed_at_least() {
+  installed "$1" &&
+    dpkg --compare-versions "$(dpkg-query -W -f='${Version}' "$1")" ge "$2"
+}
+
+updated=0
+update_once() {
+  if [ "$updated" -eq 0 ]; then
+    $SUDO apt-get update -q
+    updated=1
+  fi
+}
+
+# Enable bookworm-backports (deb822, like the system's own sources) unless some
+# source already names the suite.
+if ! grep -rqs "bookworm-backports" /etc/apt/sources.list /etc/apt/sources.list.d/; then
+  $SUDO tee "$BACKPORTS_SOURCES" >/dev/null <<'SOURCES'
+Types: deb
+URIs: http://deb.debian.org/debian
+Suites: bookworm-backports
+Components: main
+Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
+SOURCES
+  update_once
+fi
 
 missing=()
 for p in "${PKGS[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  installed "$p" || missing+=("$p")
 done
 if [ "${#missing[@]}" -gt 0 ]; then
-  $SUDO apt-get update -q
+  update_once
   $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+missing=()
+for entry in "${BACKPORTS_PKGS[@]}"; do
+  read -r p version <<<"$entry"
+  installed_at_least "$p" "$version" || missing+=("$p")
+done
+if [ "${#missing[@]}" -gt 0 ]; then
+  update_once
+  $SUDO apt-get install -y -q --no-install-recommends -t bookworm-backports "${missing[@]}"
 fi

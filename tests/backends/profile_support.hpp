@@ -1,0 +1,84 @@
+// Helpers for the board-profile tests: profiles written to a temporary
+// folder, and the repository's board folders.
+#pragma once
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "drivers/board_profile.hpp"
+#include "drivers/sim/toml_reader.hpp"
+
+namespace cylscan::drivers::test {
+
+inline std::filesystem::path boardDir(const std::string& name) {
+  return std::filesystem::path(CYLSCAN_SOURCE_DIR) / "board" / name;
+}
+
+// A folder of its own per test, removed at the end.
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = std::filesystem::temp_directory_path() /
+            ("cylscan_backends_" + std::string(info->test_suite_name()) + "_" + info->name());
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path write(const std::string& name, const std::string& text) const {
+    const auto file = path_ / name;
+    std::ofstream(file) << text;
+    return file;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// A valid hardware profile; tests append to it or replace parts of it.
+inline std::string hardwareGpio() {
+  return R"([board]
+name = "test"
+
+[gpio]
+step = { name = "GPIO17" }
+dir = { name = "GPIO27" }
+enable = { chip = "gpiochip0", offset = 22, active_low = true }
+light = { name = "GPIO24" }
+home = { name = "GPIO25" }
+trigger = { name = "GPIO23" }
+)";
+}
+
+inline std::string v4l2Main() {
+  return R"(
+[[camera]]
+name = "main"
+backend = "v4l2"
+device = "/dev/video0"
+)";
+}
+
+// The ConfigError of loading `text` as a board.toml.
+inline sim::ConfigError profileError(const TempDir& dir, const std::string& text) {
+  const auto file = dir.write("board.toml", text);
+  try {
+    loadBoardProfile(dir.path());
+  } catch (const sim::ConfigError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "the profile loaded:\n" << text;
+  return sim::ConfigError(file.string(), 0, "", "no error");
+}
+
+}  // namespace cylscan::drivers::test
