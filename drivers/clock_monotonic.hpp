@@ -1,5 +1,4 @@
-// The real clock of a board: CLOCK_MONOTONIC, the clock of the kernel's GPIO
-// edge and V4L2 buffer timestamps.
+// The real clock: CLOCK_MONOTONIC, absolute sleeps with clock_nanosleep.
 #pragma once
 
 #include <chrono>
@@ -11,7 +10,8 @@ namespace cylscan::drivers {
 class MonotonicClock final : public Clock {
  public:
   std::chrono::nanoseconds now() const override;
-  // clock_nanosleep to an absolute deadline (resumed after signals).
+  // clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME), resumed after signals
+  // (EINTR): returns only once now() >= deadline.
   void sleepUntil(std::chrono::nanoseconds deadline) override;
 };
 

@@ -41,4 +41,7 @@ struct StageConfig {
   }
 };
 
+// Throws std::invalid_argument naming the field when a value is impossible.
+void validate(const StageConfig& config);
+
 }  // namespace cylscan::drivers

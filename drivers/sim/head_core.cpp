@@ -69,8 +69,11 @@ int HeadCore::cameraIndex(std::string_view name) const {
 void HeadCore::drive(LineRole role, bool active) {
   const auto r = static_cast<std::size_t>(role);
   const bool rising = active && !level[r];
-  level[r] = active;
   const Nanoseconds t = clock.now();
+  if (active != level[r]) trace.record(role, active, t);
+  level[r] = active;
+  const std::uint64_t edges_before = stage.edgeCount();
+  bool event = false;
   switch (role) {
     case LineRole::Step:
       if (rising) stage.stepPulse(t);
@@ -84,7 +87,7 @@ void HeadCore::drive(LineRole role, bool active) {
     case LineRole::Trigger:
       if (rising) {
         for (auto& cam : cameras)
-          cam->triggerEdge(t);
+          event = cam->triggerEdge(t) || event;
       }
       break;
     case LineRole::Light:
@@ -94,6 +97,8 @@ void HeadCore::drive(LineRole role, bool active) {
     case LineRole::Fault:
       break;
   }
+  // A new frame or input edge: threads waiting for one re-check.
+  if (event || stage.edgeCount() != edges_before) clock.notifyEvent();
 }
 
 bool HeadCore::lightAt(Nanoseconds t) const {
@@ -205,9 +210,9 @@ bool VirtualCamera::expose(Nanoseconds start) {
   return true;
 }
 
-void VirtualCamera::triggerEdge(Nanoseconds t) {
-  if (!started_ || mode_ != drivers::TriggerMode::GpioPulse) return;
-  expose(t + Nanoseconds{std::llround(params_.trigger_latency_us * 1e3)});
+bool VirtualCamera::triggerEdge(Nanoseconds t) {
+  if (!started_ || mode_ != drivers::TriggerMode::GpioPulse) return false;
+  return expose(t + Nanoseconds{std::llround(params_.trigger_latency_us * 1e3)});
 }
 
 void VirtualCamera::requestFrame() {
@@ -220,6 +225,7 @@ void VirtualCamera::requestFrame() {
   if (!expose(t + Nanoseconds{std::llround(params_.trigger_latency_us * 1e3)})) {
     throw drivers::CameraError("camera '" + params_.name + "': busy, frame request refused");
   }
+  core_.clock.notifyEvent();
 }
 
 std::optional<drivers::Frame> VirtualCamera::waitFrame(Nanoseconds timeout) {
@@ -227,6 +233,8 @@ std::optional<drivers::Frame> VirtualCamera::waitFrame(Nanoseconds timeout) {
   const Nanoseconds deadline = core_.clock.now() + std::max(timeout, Nanoseconds{0});
   const Nanoseconds readout{std::llround(params_.readout_us * 1e3)};
   for (;;) {
+    // Read before looking, so a trigger in between is not missed.
+    const std::uint64_t epoch = core_.clock.eventEpoch();
     if (mode_ == drivers::TriggerMode::FreeRunning && pending_.empty()) {
       const Nanoseconds period{std::llround(1e9 / params_.frame_rate_hz)};
       const Nanoseconds now = core_.clock.now();
@@ -234,13 +242,11 @@ std::optional<drivers::Frame> VirtualCamera::waitFrame(Nanoseconds timeout) {
       expose(std::max(stream_origin_ + k * period, last_start_ + std::max(period, exposure())));
     }
     const std::optional<Pending> p = pending_.front();
-    const Nanoseconds now = core_.clock.now();
     if (!p) {
-      if (now >= deadline) return std::nullopt;
-      // Nothing is coming unless another thread triggers: let time pass.
-      const Nanoseconds step =
-          core_.clock.paced() ? std::chrono::microseconds(200) : deadline - now;
-      core_.clock.sleepUntil(std::min(deadline, now + step));
+      if (core_.clock.now() >= deadline) return std::nullopt;
+      // Nothing is coming unless another thread triggers: wait for an event
+      // or the deadline (alone in virtual time: the deadline at once).
+      core_.clock.waitForEvent(epoch, deadline);
       continue;
     }
     const Nanoseconds ready = p->start + exposure() + readout + Nanoseconds{delay_ns_.load()};

@@ -12,6 +12,7 @@
 
 #include "drivers/camera.hpp"
 #include "drivers/sim/camera_model.hpp"
+#include "drivers/sim/edge_trace.hpp"
 #include "drivers/sim/event_ring.hpp"
 #include "drivers/sim/head_config.hpp"
 #include "drivers/sim/projector.hpp"
@@ -59,6 +60,7 @@ struct HeadCore {
   std::vector<std::unique_ptr<VirtualCamera>> cameras;
   std::array<bool, kLineRoles> requested{};
   std::array<bool, kLineRoles> level{};  // device-side active state of the outputs
+  EdgeTrace<LineRole> trace;             // output edges, for golden traces
 
  private:
   struct LightSample {
@@ -83,8 +85,9 @@ class VirtualCamera final : public drivers::Camera {
   void requestFrame() override;
   std::optional<drivers::Frame> waitFrame(Nanoseconds timeout) override;
 
-  // A trigger edge on the trigger line (real-time path).
-  void triggerEdge(Nanoseconds t);
+  // A trigger edge on the trigger line (real-time path); true when it started
+  // an exposure.
+  bool triggerEdge(Nanoseconds t);
 
   // Fault injection.
   void dropFrames(int count) { drop_ += count; }

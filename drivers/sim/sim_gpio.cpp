@@ -84,18 +84,16 @@ class SimInputLine final : public drivers::InputLine {
     const drivers::Nanoseconds deadline =
         core_.clock.now() + std::max(timeout, drivers::Nanoseconds{0});
     for (;;) {
+      const std::uint64_t epoch = core_.clock.eventEpoch();  // before looking
       if (auto e = queue().front()) {
         queue().pop();
         const bool active = e->active != invert_;
         return drivers::LineEvent{active ? drivers::Edge::Rising : drivers::Edge::Falling, e->time};
       }
-      const drivers::Nanoseconds now = core_.clock.now();
-      if (now >= deadline) return std::nullopt;
-      // Virtual time: nothing moves while we wait unless another thread
-      // drives the stage; paced, poll in real time.
-      const drivers::Nanoseconds step =
-          core_.clock.paced() ? drivers::Nanoseconds{200'000} : deadline - now;
-      core_.clock.sleepUntil(std::min(deadline, now + step));
+      if (core_.clock.now() >= deadline) return std::nullopt;
+      // Nothing moves while we wait unless another thread drives the stage:
+      // wait for an event or the deadline (alone in virtual time: at once).
+      core_.clock.waitForEvent(epoch, deadline);
     }
   }
 

@@ -65,6 +65,7 @@ void StageModel::setFault(bool fault, Nanoseconds t) {
   if (fault == fault_) return;
   fault_ = fault;
   fault_edges_.push({fault, t});
+  ++edge_count_;
 }
 
 // The rotor follows a step when the step train is within the motor's torque:
@@ -122,6 +123,7 @@ void StageModel::stepPulse(Nanoseconds t) {
   if (home != home_) {
     home_ = home;
     home_edges_.push({home, t});
+    ++edge_count_;
   }
 }
 

@@ -64,6 +64,8 @@ class StageModel {
   bool homeActive() const { return home_; }
   bool enabled() const { return enabled_; }
   const StageCounters& counters() const { return counters_; }
+  // How many home and fault edges were queued so far (to notice new ones).
+  std::uint64_t edgeCount() const { return edge_count_; }
 
   struct Edge {
     bool active = false;
@@ -91,6 +93,7 @@ class StageModel {
   bool fault_ = false;
   bool stalled_ = false;
   std::uint64_t inject_loss_ = 0;
+  std::uint64_t edge_count_ = 0;
   // Previous pulse (executed or not) for the speed/acceleration rule.
   bool have_previous_ = false;
   Nanoseconds previous_time_{0};

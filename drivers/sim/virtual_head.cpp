@@ -1,5 +1,8 @@
 #include "drivers/sim/virtual_head.hpp"
 
+#include <stdexcept>
+#include <string>
+
 #include "drivers/sim/head_core.hpp"
 #include "drivers/sim/sim_gpio.hpp"
 
@@ -75,10 +78,29 @@ void VirtualHead::loseSteps(int count) {
 
 void VirtualHead::setStageFault(bool fault) {
   core_->stage.setFault(fault, core_->clock.now());
+  core_->clock.notifyEvent();
 }
 
 std::uint64_t VirtualHead::missedTriggers(std::string_view camera) const {
   return core_->cameras[static_cast<std::size_t>(core_->cameraIndex(camera))]->missedTriggers();
+}
+
+void VirtualHead::startTrace(std::size_t capacity) {
+  core_->trace.start(capacity);
+}
+
+std::vector<VirtualHead::TracedEdge> VirtualHead::takeTrace() {
+  std::size_t overflow = 0;
+  const auto edges = core_->trace.take(&overflow);
+  if (overflow > 0) {
+    throw std::length_error("virtual head: the trace missed " + std::to_string(overflow) +
+                            " edges (capacity " + std::to_string(edges.size()) + ")");
+  }
+  std::vector<TracedEdge> out;
+  out.reserve(edges.size());
+  for (const auto& e : edges)
+    out.push_back({roleName(e.role), e.active, e.time});
+  return out;
 }
 
 }  // namespace cylscan::sim

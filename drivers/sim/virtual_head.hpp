@@ -2,14 +2,16 @@
 // the cameras and a scene, behind the same driver interfaces as the hardware
 // (drivers::GpioBackend, drivers::Camera, drivers::Clock). See docs/virtual-head.md.
 //
-// Threading: one thread drives the output lines (set() is allocation- and
-// lock-free); cameras and input lines may be waited on from that thread or
-// another. In virtual time a wait with nothing pending advances the clock to
-// its deadline; with pace_real_time the clock is the real monotonic time.
+// Threading: output lines' set() is allocation- and lock-free; cameras and
+// input lines may be waited on from the driving thread or another. The clock
+// is a discrete-event clock: threads that take part hold a
+// drivers::ClockThread (see virtual_clock.hpp); with pace_real_time it is the
+// real monotonic time.
 // The head must outlive the lines and camera references it hands out.
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -62,6 +64,19 @@ class VirtualHead {
   void loseSteps(int count);                       // the next step pulses are lost
   void setStageFault(bool fault);                  // the fault input
   std::uint64_t missedTriggers(std::string_view camera) const;
+
+  // Golden traces: every change of an output line (its role, the level the
+  // device sees, the virtual time), from startTrace() to takeTrace(). Call
+  // both while no thread drives the lines; recording itself neither
+  // allocates nor locks.
+  struct TracedEdge {
+    std::string line;  // the role: step, dir, enable, trigger, light
+    bool active = false;
+    std::chrono::nanoseconds time{0};
+  };
+  void startTrace(std::size_t capacity = 1 << 16);
+  // Throws std::length_error when more edges came than the capacity.
+  std::vector<TracedEdge> takeTrace();
 
  private:
   std::unique_ptr<HeadCore> core_;
