@@ -1,5 +1,7 @@
 #include "drivers/board_profile.hpp"
 
+#include <array>
+#include <cmath>
 #include <set>
 #include <stdexcept>
 
@@ -151,6 +153,7 @@ CameraProfile readCamera(TableReader r, const GpioProfile& gpio) {
             "bit_depth", "must be 8, 10, 12 or 16");
   c.config.exposure_us = r.nonNegative("exposure_us", 0.0);
   c.config.gain = r.positive("gain", 1.0);
+  c.frame_rate_hz = r.positive("frame_rate_hz", c.frame_rate_hz);
   const std::string trigger = r.string("trigger", "gpio");
   if (trigger == "gpio") {
     c.config.trigger = TriggerMode::GpioPulse;
@@ -204,6 +207,11 @@ ScanProfile readScan(TableReader r) {
   s.frame_timeout_ms = r.positive("frame_timeout_ms", s.frame_timeout_ms);
   if (r.has("settle_ms")) s.settle_ms = r.nonNegative("settle_ms", 0.0);
   s.save_bundle = r.boolean("save_bundle", s.save_bundle);
+  s.verify_steps = r.boolean("verify_steps", s.verify_steps);
+  s.period_high_deg = r.positive("period_high_deg", s.period_high_deg);
+  s.period_low_deg = r.positive("period_low_deg", s.period_low_deg);
+  r.require(s.period_low_deg != s.period_high_deg, "period_low_deg",
+            "must differ from period_high_deg (two wavelengths)");
   r.finish();
   return s;
 }
@@ -307,6 +315,15 @@ BoardProfile parseBoardProfile(const toml::table& table, const fs::path& file) {
       r.fail("head", "must be a file name or a table");
     }
     if (r.has("scene")) s.scene = existingFile(r, "scene", dir);
+    if (r.has("resolution")) {
+      // The head's cameras at another resolution with the same fields of view
+      // (a quick head for tests and previews).
+      const std::array<double, 2> size = r.vec2("resolution", {0, 0});
+      r.require(size[0] >= 16 && size[0] <= 8192 && size[1] >= 16 && size[1] <= 8192 &&
+                    size[0] == std::floor(size[0]) && size[1] == std::floor(size[1]),
+                "resolution", "must be [width, height], whole numbers in [16, 8192]");
+      s.head = sim::withResolution(s.head, static_cast<int>(size[0]), static_cast<int>(size[1]));
+    }
     const int seed = r.integer("seed", 1);
     r.require(seed >= 0, "seed", "must be >= 0");
     s.seed = static_cast<std::uint64_t>(seed);

@@ -39,6 +39,7 @@ struct CameraProfile {
   CameraConfig config;       // width, height, bit_depth, exposure_us, gain, trigger
   std::string trigger_line;  // the [gpio] trigger key when config.trigger is GpioPulse
   double trigger_pulse_us = 10.0;
+  double frame_rate_hz = 30.0;  // the most frames a second it delivers (continuous mode's pace)
 };
 
 enum class ScanMode { StopAndGo, Continuous };
@@ -55,6 +56,10 @@ struct ScanProfile {
   double frame_timeout_ms = 1000.0;
   std::optional<double> settle_ms;  // overrides [stage] settle_ms
   bool save_bundle = true;
+  bool verify_steps = true;  // re-seek home after a scan: lost steps fail it
+  // The projector's slot intervals: θh (high set) and θl (low set).
+  double period_high_deg = 5.0;
+  double period_low_deg = 5.625;
 };
 
 // [sim]: the virtual head.

@@ -27,4 +27,6 @@ $cylscan reconstruct --calib "$out/calib.bin" --out "$out/sphere_1.ply" \
   --depth "$out/sphere_1_depth.tiff" "$data/test/sphere_1"
 echo "== evaluate: the paper's sphere metrics (truth: radius 50 mm)"
 $cylscan evaluate sphere --radius 50 "$out/sphere_1.ply"
-echo "demo: results in $out (phase maps in $out/phase, cloud $out/sphere_1.ply)"
+echo "== scan: the firmware's acquisition loop on the virtual head (board/sim), reconstructing on the fly"
+$cylscan scan --board board/sim --out "$out/scan" --calib "$out/calib.bin" --cloud "$out/scan.ply"
+echo "demo: results in $out (phase maps in $out/phase, clouds $out/sphere_1.ply and $out/scan.ply)"

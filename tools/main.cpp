@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   cylscan::tools::addPhaseCommand(app);
   cylscan::tools::addSimulateCommand(app);
+  cylscan::tools::addScanCommand(app);
   cylscan::tools::addCalibrateStereoCommand(app);
   cylscan::tools::addRefineStereoCommand(app);
   cylscan::tools::addCalibrateCommand(app);

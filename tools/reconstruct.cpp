@@ -25,6 +25,7 @@
 #include "formats/point_cloud.hpp"
 #include "formats/stereo_calibration.hpp"
 #include "tools/bundle_phase.hpp"
+#include "tools/cloud_output.hpp"
 #include "tools/commands.hpp"
 #include "tools/stereo_geometry.hpp"
 #include "tools/stopwatch.hpp"
@@ -33,9 +34,6 @@ namespace cylscan::tools {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
-// The largest calibration the format allows (2^25 pixels × 57 bytes) and a bit.
-constexpr std::uintmax_t kMaxCalibrationBytes = (std::uintmax_t{1} << 25) * 57 + 4096;
 
 struct ReconstructRequest {
   std::string bundle;
@@ -69,16 +67,6 @@ void checkMethodOptions(const ReconstructRequest& request) {
   }
 }
 
-algo::QuasiCalibration readCalibration(const fs::path& file) {
-  const std::string bytes = formats::readFileContents(file, kMaxCalibrationBytes);
-  try {
-    return algo::QuasiCalibration::deserialize(
-        std::as_bytes(std::span<const char>(bytes.data(), bytes.size())));
-  } catch (const std::invalid_argument& e) {
-    throw formats::InputError(file, e.what());
-  }
-}
-
 PhaseChoice choiceOf(algo::PhaseSource source) {
   return source == algo::PhaseSource::kHigh ? PhaseChoice::kHigh : PhaseChoice::kFused;
 }
@@ -97,41 +85,6 @@ PhaseChoice phaseForCalibration(const ReconstructRequest& request,
   return asked;
 }
 
-// The cloud of every finite point of an xyz map (CV_32FC3, NaN invalid).
-formats::PointCloud cloudOf(const cv::Mat& xyz, const cv::Mat& texture) {
-  formats::PointCloud cloud;
-  cloud.property_names = {"intensity", "u", "v"};
-  cloud.properties.resize(3);
-  for (int v = 0; v < xyz.rows; ++v) {
-    const auto* row = xyz.ptr<cv::Vec3f>(v);
-    const float* intensity = texture.ptr<float>(v);
-    for (int u = 0; u < xyz.cols; ++u) {
-      const cv::Vec3f& p = row[u];
-      if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
-      cloud.xyz.insert(cloud.xyz.end(), {p[0], p[1], p[2]});
-      cloud.properties[0].push_back(intensity[u]);
-      cloud.properties[1].push_back(static_cast<float>(u));
-      cloud.properties[2].push_back(static_cast<float>(v));
-    }
-  }
-  return cloud;
-}
-
-// Z of an xyz map, NaN where any coordinate is not finite.
-cv::Mat depthOf(const cv::Mat& xyz) {
-  cv::Mat depth(xyz.size(), CV_32F);
-  for (int v = 0; v < xyz.rows; ++v) {
-    const auto* row = xyz.ptr<cv::Vec3f>(v);
-    float* out = depth.ptr<float>(v);
-    for (int u = 0; u < xyz.cols; ++u) {
-      const cv::Vec3f& p = row[u];
-      const bool finite = std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
-      out[u] = finite ? p[2] : kNaNf;
-    }
-  }
-  return depth;
-}
-
 struct Reconstruction {
   cv::Mat xyz;  // CV_32FC3 on the main grid, NaN where invalid
   cv::Mat texture;
@@ -143,7 +96,7 @@ struct Reconstruction {
 
 Reconstruction reconstructQuasi(const ReconstructRequest& request,
                                 const formats::CaptureBundleReader& bundle) {
-  const algo::QuasiCalibration calib = readCalibration(request.calib);
+  const algo::QuasiCalibration calib = readQuasiCalibration(request.calib);
   requireCamera(bundle, "main");
   try {
     calib.requireImageSize(bundle.frameSize("main"));
@@ -195,9 +148,9 @@ void runReconstruct(const ReconstructRequest& request) {
   const Reconstruction r = request.method == "quasi" ? reconstructQuasi(request, bundle)
                                                      : reconstructStereo(request, bundle);
   Stopwatch watch;
-  const formats::PointCloud cloud = cloudOf(r.xyz, r.texture);
+  const formats::PointCloud cloud = cloudOfMaps(r.xyz, r.texture);
   formats::writePly(request.out, cloud);
-  if (!request.depth.empty()) formats::writeFloatTiff(request.depth, depthOf(r.xyz));
+  if (!request.depth.empty()) formats::writeFloatTiff(request.depth, depthOfMap(r.xyz));
   const double write_ms = watch.lapMs();
   const double pixels = r.xyz.total();
   if (request.json) {

@@ -1,6 +1,8 @@
 // Helpers for tests that run the `cylscan` program as a user would.
 #pragma once
 
+#include "tests/support/temp_dir.hpp"
+
 #include <sys/wait.h>
 #include <cstdio>
 #include <filesystem>
@@ -33,25 +35,7 @@ inline ToolResult runTool(const std::string& args) {
   return result;
 }
 
-class TempDir {
- public:
-  TempDir() {
-    std::random_device rd;
-    path_ = std::filesystem::temp_directory_path() /
-            ("cylscan-test-" + std::to_string(rd()) + std::to_string(rd()));
-    std::filesystem::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
+using test_support::TempDir;
 
 // A synthetic bundle of the `main` camera whose absolute phase Φ (in radians of
 // the high set) is known: Φ rises across the image through all nine fringe

@@ -1,0 +1,370 @@
+#include "firmware/acquisition.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "drivers/realtime_thread.hpp"
+
+namespace cylscan::firmware {
+namespace {
+
+using formats::FringeSetId;
+using std::chrono::nanoseconds;
+
+// How often a thread waiting for the other looks again. A frame comes at the
+// earliest exposure + readout after its trigger (milliseconds), so 1 ms loses
+// nothing, and on the virtual head's clock fewer polls are fewer wake-ups.
+constexpr nanoseconds kPoll = std::chrono::milliseconds(1);
+
+nanoseconds us(double value) {
+  return nanoseconds{std::llround(value * 1e3)};
+}
+
+// Turns the light off and disables the stage however the scan ends.
+class SafeState {
+ public:
+  SafeState(drivers::RotationStage& stage, drivers::OutputLine& light)
+      : stage_(stage), light_(light) {}
+  ~SafeState() {
+    light_.set(false);
+    stage_.disable();
+  }
+  SafeState(const SafeState&) = delete;
+  SafeState& operator=(const SafeState&) = delete;
+
+ private:
+  drivers::RotationStage& stage_;
+  drivers::OutputLine& light_;
+};
+
+// Stops the cameras of a scan however it ends.
+class RunningCameras {
+ public:
+  RunningCameras(drivers::Board& board, const std::vector<std::string>& names) {
+    for (const auto& name : names) {
+      drivers::Camera& camera = board.camera(name);
+      camera.start();
+      cameras_.push_back(&camera);
+    }
+  }
+  ~RunningCameras() {
+    for (drivers::Camera* camera : cameras_) {
+      try {
+        camera->stop();
+      } catch (...) {  // a camera that cannot stop must not hide the scan's own error
+      }
+    }
+  }
+  RunningCameras(const RunningCameras&) = delete;
+  RunningCameras& operator=(const RunningCameras&) = delete;
+
+ private:
+  std::vector<drivers::Camera*> cameras_;
+};
+
+}  // namespace
+
+// What the two threads share. Written before the scan starts, then only
+// through the atomics (release on publish, acquire on read).
+struct Acquisition::Shared {
+  explicit Shared(int frames)
+      : angle_deg(static_cast<std::size_t>(frames)), trigger_ns(static_cast<std::size_t>(frames)) {}
+
+  std::vector<double> angle_deg;                      // written before `triggered` passes the frame
+  std::vector<std::atomic<std::int64_t>> trigger_ns;  // latest trigger of each frame
+  std::atomic<int> triggered{0};                      // frames triggered (or, continuous, armed)
+  std::atomic<int> acked{0};                          // frames received from every camera
+  std::atomic<int> retrigger{-1};  // frame (stop-and-go) or first frame of a set to redo
+  std::atomic<bool> failed{false};
+  std::atomic<bool> motion_done{false};
+  std::atomic<bool> motion_attached{false};
+  std::optional<drivers::StepCheck> step_check;  // written before motion_done
+  std::mutex error_mutex;
+  std::string error;
+
+  void fail(const std::string& message) {
+    {
+      const std::lock_guard lock(error_mutex);
+      if (error.empty()) error = message;
+    }
+    failed.store(true, std::memory_order_release);
+  }
+  bool stopping() const { return failed.load(std::memory_order_acquire); }
+};
+
+Acquisition::Acquisition(drivers::Board& board) : board_(board) {
+  const drivers::BoardProfile& profile = board.profile();
+  drivers::StageLineSpecs specs;
+  specs.step = profile.gpio.step;
+  specs.dir = profile.gpio.dir;
+  specs.enable = profile.gpio.enable;
+  specs.home = profile.gpio.home;
+  specs.fault = profile.gpio.fault;
+  stage_ =
+      std::make_unique<drivers::RotationStage>(profile.stage, board.clock(), board.gpio(), specs);
+  light_ = board.gpio().requestOutput(profile.gpio.light, false);
+  std::set<std::string> lines;
+  for (const auto& camera : profile.cameras) {
+    if (camera.config.trigger != drivers::TriggerMode::GpioPulse) continue;
+    if (!lines.insert(camera.trigger_line).second) continue;
+    const auto it = profile.gpio.triggers.find(camera.trigger_line);
+    if (it == profile.gpio.triggers.end()) {
+      throw drivers::GpioError("camera '" + camera.name + "': trigger line '" +
+                               camera.trigger_line + "' is not in [gpio]");
+    }
+    trigger_.addLine(board.gpio().requestOutput(it->second, false));
+  }
+}
+
+Acquisition::~Acquisition() {
+  light_->set(false);
+  stage_->disable();
+}
+
+void Acquisition::abort() noexcept {
+  abort_.store(true, std::memory_order_release);
+  stage_->abort();
+}
+
+void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Shared& shared) {
+  drivers::Clock& clock = board_.clock();
+  const drivers::ClockThread attach(clock);
+  shared.motion_attached.store(true, std::memory_order_release);
+  // However the motion ends, the capture side learns it.
+  struct Done {
+    std::atomic<bool>& flag;
+    ~Done() { flag.store(true, std::memory_order_release); }
+  } done{shared.motion_done};
+  auto pulse = [&](int frame) {
+    shared.trigger_ns[static_cast<std::size_t>(frame)].store(clock.now().count(),
+                                                             std::memory_order_release);
+    trigger_.set(true);
+    clock.sleepUntil(clock.now() + us(options.trigger_pulse_us));
+    trigger_.set(false);
+  };
+  // Waits (on the clock) until the capture side has `frames` frames, or asks
+  // for `redo` again; true to go on.
+  auto awaitAck = [&](int frames, auto redo) {
+    for (;;) {
+      if (shared.stopping() || abort_.load(std::memory_order_acquire)) return false;
+      if (shared.acked.load(std::memory_order_acquire) >= frames) return true;
+      if (redo()) continue;
+      clock.sleepUntil(clock.now() + kPoll);
+    }
+  };
+  try {
+    if (!stage_->homed()) {
+      stage_->enable();
+      stage_->home();
+    }
+    stage_->enable();
+    int base = 0;
+    for (const FringeSetId id : formats::kFringeSets) {
+      const SetPlan& set = plan.set(id);
+      const int n = static_cast<int>(set.positions.size());
+      if (options.mode == drivers::ScanMode::StopAndGo) {
+        for (int k = 0; k < n; ++k) {
+          const int frame = base + k;
+          stage_->moveToStep(set.positions[static_cast<std::size_t>(k)]);
+          clock.sleepUntil(clock.now() + us(options.settle_ms * 1e3));
+          shared.angle_deg[static_cast<std::size_t>(frame)] = stage_->angleDeg();
+          shared.triggered.store(frame + 1, std::memory_order_release);
+          pulse(frame);
+          const bool go_on = awaitAck(frame + 1, [&] {
+            int asked = frame;
+            if (!shared.retrigger.compare_exchange_strong(asked, -1)) return false;
+            pulse(frame);
+            return true;
+          });
+          if (!go_on) return;
+        }
+      } else {
+        drivers::SweepRequest request;
+        request.direction = 1;
+        request.speed_deg_s = options.sweep_speed_deg_s > 0
+                                  ? options.sweep_speed_deg_s
+                                  : set.period_deg / n * options.frame_rate_hz;
+        request.range_steps = set.positions.back() - set.positions.front();
+        for (const auto p : set.positions)
+          request.trigger_offsets.push_back(p - set.positions.front());
+        request.trigger_pulse_us = options.trigger_pulse_us;
+        request.trigger_lead_us = options.exposure_us / 2;  // the exposure centred on the step
+        bool again = true;
+        while (again) {
+          again = false;
+          const drivers::PreparedSweep sweep = stage_->prepareSweep(set.positions.front(), request);
+          for (int k = 0; k < n; ++k)
+            shared.angle_deg[static_cast<std::size_t>(base + k)] =
+                sweep.trigger_angles_deg[static_cast<std::size_t>(k)];
+          const nanoseconds start = clock.now();
+          for (int k = 0; k < n; ++k)
+            shared.trigger_ns[static_cast<std::size_t>(base + k)].store(start.count());
+          shared.triggered.store(base + n, std::memory_order_release);
+          stage_->runSweep(sweep, trigger_);
+          const bool go_on = awaitAck(base + n, [&] {
+            int asked = base;
+            if (!shared.retrigger.compare_exchange_strong(asked, -1)) return false;
+            again = true;
+            return true;
+          });
+          if (!go_on) return;
+          if (again) shared.acked.store(base, std::memory_order_release);
+          if (again) stage_->enable();
+        }
+      }
+      base += n;
+    }
+    if (options.verify_steps) {
+      shared.step_check = stage_->verifyStepCount();
+    }
+    stage_->disable();
+  } catch (const std::exception& e) {
+    shared.fail(e.what());
+  }
+}
+
+void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink,
+                          Shared& shared, const std::function<void(const ScanProgress&)>& progress,
+                          ScanReport& report) {
+  drivers::Clock& clock = board_.clock();
+  const nanoseconds timeout = us(options.frame_timeout_ms * 1e3);
+  auto halted = [&] { return shared.stopping() || abort_.load(std::memory_order_acquire); };
+  std::map<std::string, std::optional<std::uint64_t>> next_sequence;
+  int base = 0;
+  for (const FringeSetId id : formats::kFringeSets) {
+    const int n = static_cast<int>(plan.set(id).positions.size());
+    for (int k = 0; k < n; ++k) {
+      const int frame = base + k;
+      while (shared.triggered.load(std::memory_order_acquire) <= frame) {
+        if (halted() || shared.motion_done.load(std::memory_order_acquire)) return;
+        clock.sleepUntil(clock.now() + kPoll);
+      }
+      bool retried = false;
+      for (const std::string& name : options.cameras) {
+        drivers::Camera& camera = board_.camera(name);
+        for (;;) {
+          if (halted()) return;
+          std::optional<drivers::Frame> f = camera.waitFrame(timeout);
+          if (!f) {
+            if (retried) {
+              shared.fail("camera '" + name + "': no frame " + std::to_string(k) + " of the " +
+                          std::string(formats::toString(id)) + " set within " +
+                          std::to_string(options.frame_timeout_ms) + " ms, twice");
+              return;
+            }
+            retried = true;
+            ++report.retries;
+            // Stop-and-go triggers the frame again; continuous mode sweeps the set again.
+            const bool stop_and_go = options.mode == drivers::ScanMode::StopAndGo;
+            shared.retrigger.store(stop_and_go ? frame : base, std::memory_order_release);
+            for (auto& [camera_name, sequence] : next_sequence)
+              sequence.reset();  // the lost exposure may have used a sequence number
+            if (!stop_and_go) {
+              // The set restarts: drop what was folded of it is not possible in
+              // a streaming engine, so a continuous set fails on a second try.
+              shared.fail("camera '" + name + "': no frame " + std::to_string(k) + " of the " +
+                          std::string(formats::toString(id)) + " set within " +
+                          std::to_string(options.frame_timeout_ms) + " ms during a sweep");
+              return;
+            }
+            continue;
+          }
+          const std::int64_t triggered_at =
+              shared.trigger_ns[static_cast<std::size_t>(frame)].load(std::memory_order_acquire);
+          if (options.mode == drivers::ScanMode::StopAndGo && f->timestamp.count() < triggered_at)
+            continue;  // exposed before this frame's trigger: a late or free-running frame
+          std::optional<std::uint64_t>& expected = next_sequence[name];
+          if (expected && f->sequence != *expected) {
+            shared.fail("camera '" + name + "': frame sequence jumped from " +
+                        std::to_string(*expected) + " to " + std::to_string(f->sequence) +
+                        " at frame " + std::to_string(k) + " of the " +
+                        std::string(formats::toString(id)) + " set: a frame was lost");
+            return;
+          }
+          expected = f->sequence + 1;
+          sink.onFrame(name, id, k, shared.angle_deg[static_cast<std::size_t>(frame)], f->image);
+          break;
+        }
+      }
+      shared.acked.store(frame + 1, std::memory_order_release);
+      ++report.frames;
+      if (k == n - 1) {
+        report.set_duration[id == FringeSetId::High ? 0 : 1] =
+            clock.now() - nanoseconds{shared.trigger_ns[static_cast<std::size_t>(base)].load()};
+      }
+      if (progress) progress({frame + 1, plan.frames(), id});
+    }
+    base += n;
+  }
+  while (!shared.motion_done.load(std::memory_order_acquire) && !halted())
+    clock.sleepUntil(clock.now() + kPoll);
+}
+
+ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink,
+                            const std::function<void(const ScanProgress&)>& progress) {
+  abort_.store(false, std::memory_order_release);
+  if (options.cameras.empty()) throw std::invalid_argument("scan: no camera to capture");
+  trigger_.clearSoftwareCameras();
+  for (const auto& name : options.cameras) {
+    const drivers::CameraProfile& camera = board_.profile().camera(name);
+    if (camera.config.trigger == drivers::TriggerMode::Software)
+      trigger_.addSoftwareCamera(board_.camera(name));
+    if (camera.config.trigger == drivers::TriggerMode::FreeRunning &&
+        options.mode == drivers::ScanMode::Continuous)
+      throw std::invalid_argument("scan: camera '" + name +
+                                  "' is free-running; continuous mode needs triggered cameras");
+  }
+  ScanReport report;
+  Shared shared(plan.frames());
+  drivers::Clock& clock = board_.clock();
+  const nanoseconds started = clock.now();
+  report.homed = !stage_->homed();
+  {
+    const SafeState safe(*stage_, *light_);
+    const RunningCameras cameras(board_, options.cameras);
+    light_->set(true);
+    std::optional<drivers::RealtimeThread> thread;
+    {
+      const drivers::ClockThread attach(clock);
+      drivers::RealtimeOptions realtime;
+      realtime.priority = options.realtime_priority;
+      realtime.lock_memory = options.lock_memory;
+      thread.emplace([&] { motion(options, plan, shared); }, realtime);
+      // Both threads take part in the clock before either acts (a
+      // discrete-event clock must know every participant).
+      while (!shared.motion_attached.load(std::memory_order_acquire))
+        std::this_thread::yield();
+      report.realtime = thread->realtime();
+      report.warnings = thread->warnings();
+      try {
+        capture(options, plan, sink, shared, progress, report);
+      } catch (const std::exception& e) {
+        shared.fail(e.what());
+        stage_->abort();
+        // Detach before joining (the join blocks outside the clock).
+      }
+      if (shared.stopping()) stage_->abort();
+    }
+    thread->join();
+  }
+  report.duration = clock.now() - started;
+  report.step_check = shared.step_check;
+  report.step_jitter = stage_->executor().stepJitter().snapshot();
+  report.trigger_jitter = stage_->executor().triggerJitter().snapshot();
+  if (abort_.load(std::memory_order_acquire)) throw ScanError("scan aborted");
+  if (shared.stopping()) {
+    const std::lock_guard lock(shared.error_mutex);
+    throw ScanError("scan failed: " + shared.error);
+  }
+  report.high_deg.assign(shared.angle_deg.begin(),
+                         shared.angle_deg.begin() + static_cast<long>(plan.high.positions.size()));
+  report.low_deg.assign(shared.angle_deg.begin() + static_cast<long>(plan.high.positions.size()),
+                        shared.angle_deg.end());
+  return report;
+}
+
+}  // namespace cylscan::firmware

@@ -1,0 +1,96 @@
+// The acquisition loop: the scan plan executed on the board through the
+// driver interfaces, whatever the backends are (the virtual head or GPIO +
+// V4L2/libcamera). Two threads:
+//   - the motion thread (drivers::RealtimeThread: SCHED_FIFO and locked memory
+//     when allowed) homes the stage when needed, moves and settles (or sweeps
+//     at constant speed in continuous mode), and fires the trigger;
+//   - the calling thread waits for each camera's frame, checks its sequence
+//     and timestamp, and hands it to the FrameSink (the streaming fold).
+// They meet through atomics, and every wait is on the board's clock, so the
+// virtual head's discrete-event clock runs the same code as real time.
+//
+// Faults: a camera timeout is retried once (the frame is triggered again, or
+// in continuous mode the set is swept again), then the scan fails; a gap in a
+// camera's sequence numbers fails it; so do a home switch that never fires, the
+// stage fault input and lost steps (a re-seek of home after the scan). Whatever
+// happens, the stage is disabled and the light is off when run() returns.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "drivers/board.hpp"
+#include "drivers/jitter_stats.hpp"
+#include "drivers/rotation_stage.hpp"
+#include "firmware/frame_sink.hpp"
+#include "firmware/scan_plan.hpp"
+#include "firmware/trigger_fanout.hpp"
+
+namespace cylscan::firmware {
+
+class ScanError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct ScanProgress {
+  int frames_done = 0;
+  int frames_total = 0;
+  formats::FringeSetId set = formats::FringeSetId::High;
+};
+
+struct ScanReport {
+  std::vector<double> high_deg, low_deg;  // executed angles of the frames
+  bool homed = false;                     // this scan homed the stage
+  std::optional<drivers::StepCheck> step_check;
+  std::chrono::nanoseconds duration{0};  // on the board's clock
+  // Each set's time from its first trigger to its last frame (high, low).
+  std::array<std::chrono::nanoseconds, 2> set_duration{};
+  int frames = 0;
+  int retries = 0;
+  bool realtime = false;  // the motion thread got SCHED_FIFO
+  std::vector<std::string> warnings;
+  drivers::JitterStats::Snapshot step_jitter, trigger_jitter;
+};
+
+class Acquisition {
+ public:
+  // Requests the stage, light and trigger lines of the board's profile
+  // (drivers::GpioError naming a line that cannot be had).
+  explicit Acquisition(drivers::Board& board);
+  ~Acquisition();
+  Acquisition(const Acquisition&) = delete;
+  Acquisition& operator=(const Acquisition&) = delete;
+
+  // Runs one scan of `plan` with the cameras of `options`. ScanError with the
+  // reason when it fails or is aborted; the sink's own exceptions pass through
+  // (the scan stops first).
+  ScanReport run(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink,
+                 const std::function<void(const ScanProgress&)>& progress = {});
+
+  // From any thread: the running scan stops as soon as it can and fails.
+  void abort() noexcept;
+
+  const drivers::RotationStage& stage() const { return *stage_; }
+
+ private:
+  struct Shared;
+  void motion(const ScanOptions& options, const ScanPlan& plan, Shared& shared);
+  void capture(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink, Shared& shared,
+               const std::function<void(const ScanProgress&)>& progress, ScanReport& report);
+
+  drivers::Board& board_;
+  std::unique_ptr<drivers::RotationStage> stage_;
+  std::unique_ptr<drivers::OutputLine> light_;
+  TriggerFanout trigger_;
+  std::atomic<bool> abort_{false};
+};
+
+}  // namespace cylscan::firmware

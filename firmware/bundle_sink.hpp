@@ -1,0 +1,46 @@
+// Saving the raw frames of a scan as a capture bundle (spec §1), with the
+// executed angles; optional, since the streaming fold needs no frames kept.
+// The bundle's capture.json is written last (commit), so an interrupted scan
+// never leaves a bundle that reads as complete.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "firmware/frame_sink.hpp"
+#include "firmware/scan_plan.hpp"
+#include "formats/capture_bundle.hpp"
+
+namespace cylscan::firmware {
+
+class BundleSink final : public FrameSink {
+ public:
+  BundleSink(const std::filesystem::path& dir, const ScanPlan& plan,
+             const std::vector<std::string>& cameras, nlohmann::json extra);
+  void onFrame(std::string_view camera, formats::FringeSetId set, int k, double stage_deg,
+               const cv::Mat& image) override;
+  void commit();
+
+ private:
+  formats::CaptureBundleWriter writer_;
+};
+
+// Hands every frame to several sinks, in order.
+class TeeSink final : public FrameSink {
+ public:
+  void add(FrameSink& sink) { sinks_.push_back(&sink); }
+  void onFrame(std::string_view camera, formats::FringeSetId set, int k, double stage_deg,
+               const cv::Mat& image) override {
+    for (FrameSink* sink : sinks_)
+      sink->onFrame(camera, set, k, stage_deg, image);
+  }
+
+ private:
+  std::vector<FrameSink*> sinks_;
+};
+
+}  // namespace cylscan::firmware

@@ -1,0 +1,70 @@
+#include "firmware/phase_sink.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace cylscan::firmware {
+namespace {
+
+algo::FringeSet engineSet(formats::FringeSetId id) {
+  return id == formats::FringeSetId::High ? algo::FringeSet::High : algo::FringeSet::Low;
+}
+
+}  // namespace
+
+PhaseSink::PhaseSink(const ScanPlan& plan, const algo::PhaseOptions& options)
+    : plan_(plan),
+      options_(options),
+      high_{plan.high.period_deg, plan.anglesDeg(formats::FringeSetId::High)},
+      low_{plan.low.period_deg, plan.anglesDeg(formats::FringeSetId::Low)} {}
+
+PhaseSink::Camera& PhaseSink::camera(std::string_view name) {
+  const auto it = cameras_.find(name);
+  if (it == cameras_.end())
+    throw std::invalid_argument("phase: no engine for camera '" + std::string(name) + "'");
+  return it->second;
+}
+
+const PhaseSink::Camera& PhaseSink::camera(std::string_view name) const {
+  const auto it = cameras_.find(name);
+  if (it == cameras_.end())
+    throw std::invalid_argument("phase: no engine for camera '" + std::string(name) + "'");
+  return it->second;
+}
+
+void PhaseSink::onFrame(std::string_view name, formats::FringeSetId set, int k, double stage_deg,
+                        const cv::Mat& image) {
+  // The engine's weights come from the plan: a frame must be where it says.
+  const double planned = plan_.anglesDeg(set).at(static_cast<std::size_t>(k));
+  if (std::abs(planned - stage_deg) > 0.5 / plan_.steps_per_deg) {
+    throw std::logic_error("phase: frame " + std::to_string(k) + " of the " +
+                           std::string(formats::toString(set)) + " set was exposed at " +
+                           std::to_string(stage_deg) + " deg, planned " + std::to_string(planned));
+  }
+  auto it = cameras_.find(name);
+  if (it == cameras_.end())
+    it = cameras_
+             .emplace(std::string(name),
+                      Camera{algo::PhaseEngine(image.size(), high_, low_, options_), 0})
+             .first;
+  Camera& c = it->second;
+  c.engine.fold(engineSet(set), k, image);
+  ++c.folded;
+}
+
+int PhaseSink::folded(std::string_view name) const {
+  return camera(name).folded;
+}
+
+algo::PhaseMaps PhaseSink::finalize(std::string_view name) {
+  return camera(name).engine.finalize();
+}
+
+algo::CompactPhase PhaseSink::finalizeCompact(std::string_view name) {
+  algo::CompactPhase out;
+  camera(name).engine.finalizeCompact(out);
+  return out;
+}
+
+}  // namespace cylscan::firmware

@@ -1,0 +1,44 @@
+// The streaming reconstruction of a scan: one phase engine per camera, each
+// frame folded as it arrives (the engine keeps 16 bytes a pixel, not frames).
+#pragma once
+
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "algo/phase_engine.hpp"
+#include "firmware/frame_sink.hpp"
+#include "firmware/scan_plan.hpp"
+
+namespace cylscan::firmware {
+
+class PhaseSink final : public FrameSink {
+ public:
+  // An engine per camera, made at the camera's first frame (its size), for
+  // the executed angles of `plan`.
+  PhaseSink(const ScanPlan& plan, const algo::PhaseOptions& options);
+
+  void onFrame(std::string_view camera, formats::FringeSetId set, int k, double stage_deg,
+               const cv::Mat& image) override;
+
+  // The maps of a camera once every frame was folded; std::logic_error before.
+  algo::PhaseMaps finalize(std::string_view camera);
+  algo::CompactPhase finalizeCompact(std::string_view camera);
+  int folded(std::string_view camera) const;
+
+ private:
+  struct Camera {
+    algo::PhaseEngine engine;
+    int folded = 0;
+  };
+  Camera& camera(std::string_view name);
+  const Camera& camera(std::string_view name) const;
+
+  const ScanPlan& plan_;
+  algo::PhaseOptions options_;
+  algo::FringeSetGeometry high_, low_;
+  std::map<std::string, Camera, std::less<>> cameras_;
+};
+
+}  // namespace cylscan::firmware

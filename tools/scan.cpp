@@ -1,0 +1,207 @@
+// cylscan scan: one acquisition on a board profile (spec §5): the firmware's
+// acquisition loop (firmware/acquisition.hpp) drives the stage, the trigger
+// and the cameras through the drivers, folds every frame into the phase
+// engine as it arrives, and writes the capture bundle (executed angles); with
+// --calib and --cloud it also reconstructs on the fly.
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "drivers/board.hpp"
+#include "firmware/acquisition.hpp"
+#include "firmware/bundle_sink.hpp"
+#include "firmware/phase_sink.hpp"
+#include "firmware/scan_plan.hpp"
+#include "formats/images.hpp"
+#include "formats/input_error.hpp"
+#include "formats/point_cloud.hpp"
+#include "tools/bundle_phase.hpp"
+#include "tools/cloud_output.hpp"
+#include "tools/commands.hpp"
+#include "tools/stopwatch.hpp"
+
+namespace cylscan::tools {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct ScanRequest {
+  std::string board = "board/sim";
+  std::string out;
+  std::string calib;
+  std::string cloud;
+  std::string depth;
+  std::string scene;
+  std::string mode;  // empty: the profile's
+  std::string phase;
+  std::vector<std::string> cameras;
+  int frames = 0;  // 0: the profile's
+  bool no_verify = false;
+  bool json = false;
+};
+
+void checkRequest(const ScanRequest& r) {
+  if (r.out.empty() && r.cloud.empty())
+    throw std::invalid_argument("scan: give --out BUNDLE, --cloud cloud.ply, or both");
+  if (!r.cloud.empty() && r.calib.empty())
+    throw std::invalid_argument("scan: --cloud needs --calib CALIB");
+  if (!r.calib.empty() && r.cloud.empty())
+    throw std::invalid_argument("scan: --calib is for --cloud cloud.ply");
+  if (!r.depth.empty() && r.cloud.empty())
+    throw std::invalid_argument("scan: --depth comes with --cloud");
+}
+
+firmware::ScanOptions optionsFor(const ScanRequest& request, const drivers::BoardProfile& profile) {
+  firmware::ScanOptions options = firmware::scanOptionsFrom(profile);
+  if (request.frames > 0) options.frames_high = options.frames_low = request.frames;
+  if (request.mode == "stop") options.mode = drivers::ScanMode::StopAndGo;
+  if (request.mode == "continuous") options.mode = drivers::ScanMode::Continuous;
+  if (request.no_verify) options.verify_steps = false;
+  options.cameras = request.cameras.empty() ? std::vector<std::string>{"main"} : request.cameras;
+  if (options.cameras.front() != "main")
+    throw std::invalid_argument("scan: the first camera must be 'main'");
+  for (const auto& name : options.cameras)
+    (void)profile.camera(name);  // invalid_argument naming an unknown camera
+  return options;
+}
+
+json jitterJson(const drivers::JitterStats::Snapshot& s) {
+  auto us = [](std::chrono::nanoseconds t) { return static_cast<double>(t.count()) / 1e3; };
+  return {{"count", s.count}, {"p50_us", us(s.p50)}, {"p99_us", us(s.p99)}, {"max_us", us(s.max)}};
+}
+
+void runScan(const ScanRequest& request) {
+  Stopwatch total;
+  checkRequest(request);
+  std::optional<algo::QuasiCalibration> calib;
+  if (!request.calib.empty()) calib = readQuasiCalibration(request.calib);
+  drivers::Board board = drivers::Board::open(
+      request.board, request.scene.empty() ? std::nullopt : std::optional<fs::path>(request.scene));
+  const drivers::BoardProfile& profile = board.profile();
+  const firmware::ScanOptions options = optionsFor(request, profile);
+  const firmware::ScanPlan plan = firmware::planScan(options, profile.stage);
+  const drivers::CameraProfile& main = profile.camera("main");
+  if (calib && main.config.width > 0) {
+    try {
+      calib->requireImageSize({main.config.width, main.config.height});
+    } catch (const std::invalid_argument& e) {
+      throw formats::InputError(request.calib,
+                                std::string(e.what()) + " (board " + profile.name + ")");
+    }
+  }
+
+  algo::PhaseOptions phase_options;
+  phase_options.bit_depth = main.config.bit_depth;
+  firmware::PhaseSink phase(plan, phase_options);
+  firmware::TeeSink sinks;
+  sinks.add(phase);
+  std::unique_ptr<firmware::BundleSink> bundle;
+  if (!request.out.empty()) {
+    json extra = {{"device", "cylscan " + profile.name},
+                  {"board", profile.name},
+                  {"mode", drivers::toString(options.mode)},
+                  {"exposure_us", main.config.exposure_us}};
+    if (main.config.bit_depth > 8) extra["bit_depth"] = main.config.bit_depth;
+    bundle = std::make_unique<firmware::BundleSink>(request.out, plan, options.cameras, extra);
+    sinks.add(*bundle);
+  }
+
+  firmware::Acquisition acquisition(board);
+  Stopwatch watch;
+  const firmware::ScanReport report = acquisition.run(options, plan, sinks);
+  const double acquire_ms = watch.lapMs();
+  if (bundle) bundle->commit();
+
+  json summary = {{"board", profile.name},
+                  {"mode", drivers::toString(options.mode)},
+                  {"cameras", options.cameras},
+                  {"frames", report.frames},
+                  {"retries", report.retries},
+                  {"homed", report.homed},
+                  {"scan_seconds", static_cast<double>(report.duration.count()) / 1e9},
+                  {"set_seconds",
+                   {{"high", static_cast<double>(report.set_duration[0].count()) / 1e9},
+                    {"low", static_cast<double>(report.set_duration[1].count()) / 1e9}}},
+                  {"realtime", report.realtime},
+                  {"warnings", report.warnings},
+                  {"step_jitter", jitterJson(report.step_jitter)},
+                  {"trigger_jitter", jitterJson(report.trigger_jitter)},
+                  {"stage_deg", {{"high", report.high_deg}, {"low", report.low_deg}}}};
+  if (report.step_check) {
+    summary["step_check"] = {{"expected_edge", report.step_check->expected_edge},
+                             {"found_edge", report.step_check->found_edge},
+                             {"lost_steps", report.step_check->lostSteps()}};
+  }
+  if (!request.out.empty()) summary["out"] = request.out;
+  if (calib) {
+    const algo::PhaseMaps maps = phase.finalize("main");
+    const PhaseChoice choice =
+        request.phase.empty()
+            ? (calib->info().phase_source == algo::PhaseSource::kHigh ? PhaseChoice::kHigh
+                                                                      : PhaseChoice::kFused)
+            : parsePhaseChoice(request.phase);
+    const cv::Mat xyz = calib->evaluate(absolutePhase(maps, choice));
+    const formats::PointCloud cloud = cloudOfMaps(xyz, maps.texture);
+    formats::writePly(request.cloud, cloud);
+    if (!request.depth.empty()) formats::writeFloatTiff(request.depth, depthOfMap(xyz));
+    summary["cloud"] = request.cloud;
+    summary["points"] = cloud.size();
+    summary["phase"] = toString(choice);
+    summary["phase_valid_fraction"] = maps.valid_fraction;
+  }
+  summary["timings_ms"] = {{"acquire", acquire_ms}, {"total", total.elapsedMs()}};
+  if (request.json) {
+    std::cout << summary.dump() << "\n";
+    return;
+  }
+  std::cout << std::fixed << std::setprecision(3) << "scan (" << profile.name << ", "
+            << drivers::toString(options.mode) << "): " << report.frames << " frames in "
+            << summary["scan_seconds"].get<double>() << " s of board time (sets "
+            << summary["set_seconds"]["high"].get<double>() << " + "
+            << summary["set_seconds"]["low"].get<double>() << " s)";
+  if (report.retries) std::cout << ", " << report.retries << " retried";
+  std::cout << "\n  step lateness p50/p99/max " << report.step_jitter.p50.count() / 1e3 << "/"
+            << report.step_jitter.p99.count() / 1e3 << "/" << report.step_jitter.max.count() / 1e3
+            << " us" << (report.realtime ? " (SCHED_FIFO)" : " (normal priority)") << "\n";
+  for (const auto& w : report.warnings)
+    std::cout << "  warning: " << w << "\n";
+  if (!request.out.empty()) std::cout << "  bundle -> " << request.out << "\n";
+  if (calib)
+    std::cout << "  cloud: " << summary["points"].get<std::size_t>() << " points -> "
+              << request.cloud << "\n";
+}
+
+}  // namespace
+
+void addScanCommand(CLI::App& app) {
+  auto request = std::make_shared<ScanRequest>();
+  CLI::App* cmd = app.add_subcommand("scan", "one acquisition on a board (default board/sim)");
+  cmd->add_option("--board", request->board, "board profile folder (default board/sim)");
+  cmd->add_option("--out", request->out, "capture bundle to write");
+  cmd->add_option("--calib", request->calib, "quasi-calibration for --cloud");
+  cmd->add_option("--cloud", request->cloud, "point cloud to write (needs --calib)");
+  cmd->add_option("--depth", request->depth, "depth map to write (with --cloud)");
+  cmd->add_option("--scene", request->scene, "virtual head only: the scene file to scan");
+  cmd->add_option("--mode", request->mode, "stop (stop and go) or continuous (the profile's)")
+      ->check(CLI::IsMember({"stop", "continuous"}));
+  cmd->add_option("--frames", request->frames, "frames per set (default: the profile's)")
+      ->check(CLI::Range(3, 1000));
+  cmd->add_option("--camera", request->cameras,
+                  "camera to capture (repeatable; default main; main first)");
+  cmd->add_option("--phase", request->phase, "absolute phase for --cloud: fused or high")
+      ->check(CLI::IsMember({"high", "fused"}));
+  cmd->add_flag("--no-verify", request->no_verify, "skip the re-seek of home after the scan");
+  cmd->add_flag("--json", request->json, "print the summary as one JSON object");
+  cmd->callback([request] { runScan(*request); });
+}
+
+}  // namespace cylscan::tools
