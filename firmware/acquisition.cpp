@@ -78,7 +78,8 @@ struct Acquisition::Shared {
   std::vector<std::atomic<std::int64_t>> trigger_ns;  // latest trigger of each frame
   std::atomic<int> triggered{0};                      // frames triggered (or, continuous, armed)
   std::atomic<int> acked{0};                          // frames received from every camera
-  std::atomic<int> retrigger{-1};  // frame (stop-and-go) or first frame of a set to redo
+  std::atomic<int> retrigger{-1};        // frame (stop-and-go) or first frame of a set to redo
+  std::atomic<int> sweep_generation{0};  // continuous: sweeps started (a re-sweep is a new one)
   std::atomic<bool> failed{false};
   std::atomic<bool> motion_done{false};
   std::atomic<bool> motion_attached{false};
@@ -147,12 +148,14 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
     trigger_.set(false);
   };
   // Waits (on the clock) until the capture side has `frames` frames, or asks
-  // for `redo` again; true to go on.
-  auto awaitAck = [&](int frames, auto redo) {
+  // to redo from frame `first`.
+  enum class Ack { kDone, kRedo, kStop };
+  auto awaitAck = [&](int frames, int first) {
     for (;;) {
-      if (shared.stopping() || abort_.load(std::memory_order_acquire)) return false;
-      if (shared.acked.load(std::memory_order_acquire) >= frames) return true;
-      if (redo()) continue;
+      if (shared.stopping() || abort_.load(std::memory_order_acquire)) return Ack::kStop;
+      if (shared.acked.load(std::memory_order_acquire) >= frames) return Ack::kDone;
+      int asked = first;
+      if (shared.retrigger.compare_exchange_strong(asked, -1)) return Ack::kRedo;
       clock.sleepUntil(clock.now() + kPoll);
     }
   };
@@ -174,13 +177,10 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
           shared.angle_deg[static_cast<std::size_t>(frame)] = stage_->angleDeg();
           shared.triggered.store(frame + 1, std::memory_order_release);
           pulse(frame);
-          const bool go_on = awaitAck(frame + 1, [&] {
-            int asked = frame;
-            if (!shared.retrigger.compare_exchange_strong(asked, -1)) return false;
+          Ack ack;
+          while ((ack = awaitAck(frame + 1, frame)) == Ack::kRedo)
             pulse(frame);
-            return true;
-          });
-          if (!go_on) return;
+          if (ack == Ack::kStop) return;
         }
       } else {
         drivers::SweepRequest request;
@@ -193,9 +193,7 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
           request.trigger_offsets.push_back(p - set.positions.front());
         request.trigger_pulse_us = options.trigger_pulse_us;
         request.trigger_lead_us = options.exposure_us / 2;  // the exposure centred on the step
-        bool again = true;
-        while (again) {
-          again = false;
+        for (;;) {
           const drivers::PreparedSweep sweep = stage_->prepareSweep(set.positions.front(), request);
           for (int k = 0; k < n; ++k)
             shared.angle_deg[static_cast<std::size_t>(base + k)] =
@@ -203,17 +201,12 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
           const nanoseconds start = clock.now();
           for (int k = 0; k < n; ++k)
             shared.trigger_ns[static_cast<std::size_t>(base + k)].store(start.count());
+          shared.sweep_generation.fetch_add(1, std::memory_order_acq_rel);
           shared.triggered.store(base + n, std::memory_order_release);
           stage_->runSweep(sweep, trigger_);
-          const bool go_on = awaitAck(base + n, [&] {
-            int asked = base;
-            if (!shared.retrigger.compare_exchange_strong(asked, -1)) return false;
-            again = true;
-            return true;
-          });
-          if (!go_on) return;
-          if (again) shared.acked.store(base, std::memory_order_release);
-          if (again) stage_->enable();
+          const Ack ack = awaitAck(base + n, base);
+          if (ack == Ack::kStop) return;
+          if (ack == Ack::kDone) break;  // else sweep the set again
         }
       }
       base += n;
@@ -234,9 +227,12 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
   const nanoseconds timeout = us(options.frame_timeout_ms * 1e3);
   auto halted = [&] { return shared.stopping() || abort_.load(std::memory_order_acquire); };
   std::map<std::string, std::optional<std::uint64_t>> next_sequence;
+  std::map<std::string, int> received, skip;  // frames of the current set, per camera
   int base = 0;
   for (const FringeSetId id : formats::kFringeSets) {
     const int n = static_cast<int>(plan.set(id).positions.size());
+    received.clear();
+    skip.clear();
     for (int k = 0; k < n; ++k) {
       const int frame = base + k;
       while (shared.triggered.load(std::memory_order_acquire) <= frame) {
@@ -258,25 +254,32 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
             }
             retried = true;
             ++report.retries;
-            // Stop-and-go triggers the frame again; continuous mode sweeps the set again.
-            const bool stop_and_go = options.mode == drivers::ScanMode::StopAndGo;
-            shared.retrigger.store(stop_and_go ? frame : base, std::memory_order_release);
             for (auto& [camera_name, sequence] : next_sequence)
               sequence.reset();  // the lost exposure may have used a sequence number
-            if (!stop_and_go) {
-              // The set restarts: drop what was folded of it is not possible in
-              // a streaming engine, so a continuous set fails on a second try.
-              shared.fail("camera '" + name + "': no frame " + std::to_string(k) + " of the " +
-                          std::string(formats::toString(id)) + " set within " +
-                          std::to_string(options.frame_timeout_ms) + " ms during a sweep");
-              return;
+            if (options.mode == drivers::ScanMode::StopAndGo) {
+              shared.retrigger.store(frame, std::memory_order_release);  // the same frame again
+              continue;
             }
+            // Continuous: the set is swept again. Its frames come from the
+            // start; each camera skips those it already has.
+            const int generation = shared.sweep_generation.load(std::memory_order_acquire);
+            shared.retrigger.store(base, std::memory_order_release);
+            while (shared.sweep_generation.load(std::memory_order_acquire) == generation) {
+              if (halted() || shared.motion_done.load(std::memory_order_acquire)) return;
+              clock.sleepUntil(clock.now() + kPoll);
+            }
+            for (const std::string& c : options.cameras)
+              skip[c] = received[c];
             continue;
           }
           const std::int64_t triggered_at =
               shared.trigger_ns[static_cast<std::size_t>(frame)].load(std::memory_order_acquire);
-          if (options.mode == drivers::ScanMode::StopAndGo && f->timestamp.count() < triggered_at)
-            continue;  // exposed before this frame's trigger: a late or free-running frame
+          if (f->timestamp.count() < triggered_at)
+            continue;  // exposed before this frame's trigger (or sweep): late or free-running
+          if (skip[name] > 0) {  // a re-sweep's frame this camera already has
+            --skip[name];
+            continue;
+          }
           std::optional<std::uint64_t>& expected = next_sequence[name];
           if (expected && f->sequence != *expected) {
             shared.fail("camera '" + name + "': frame sequence jumped from " +
@@ -286,6 +289,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
             return;
           }
           expected = f->sequence + 1;
+          ++received[name];
           sink.onFrame(name, id, k, shared.angle_deg[static_cast<std::size_t>(frame)], f->image);
           break;
         }

@@ -9,11 +9,13 @@
 // They meet through atomics, and every wait is on the board's clock, so the
 // virtual head's discrete-event clock runs the same code as real time.
 //
-// Faults: a camera timeout is retried once (the frame is triggered again, or
-// in continuous mode the set is swept again), then the scan fails; a gap in a
-// camera's sequence numbers fails it; so do a home switch that never fires, the
-// stage fault input and lost steps (a re-seek of home after the scan). Whatever
-// happens, the stage is disabled and the light is off when run() returns.
+// Faults: a camera timeout is retried once (stop-and-go triggers the frame
+// again; continuous mode sweeps the set again and each camera skips the frames
+// it already has), then the scan fails; a frame the camera lost without a
+// timeout (a jump of its sequence numbers) fails it; so do a home switch that
+// never fires, the stage fault input and lost steps (a re-seek of home after
+// the scan). Whatever happens, the stage is disabled and the light is off
+// when run() returns.
 #pragma once
 
 #include <array>

@@ -5,6 +5,7 @@
 // and the light off.
 #include "firmware/acquisition.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -224,6 +225,37 @@ TEST(Acquisition, ACameraTimeoutIsRetriedOnce) {
   const PhaseError e =
       compareWithHead(scan.head(), phase.finalize("main").absolute, report.high_deg.front());
   EXPECT_LT(e.rms, 0.01);
+}
+
+TEST(Acquisition, AContinuousSetIsSweptAgainAfterATimeout) {
+  TempDir dir;
+  Scan scan(smallBoard(dir, kPlane, {{"mode = \"stop\"", "mode = \"continuous\""}}));
+  scan.options.cameras = {"main", "aux"};
+  PhaseSink phase(scan.plan, {});
+  Acquisition acquisition(scan.board);
+  const ScanReport report =
+      acquisition.run(scan.options, scan.plan, phase, [&](const ScanProgress& p) {
+        // The set's last frame: nothing follows it, so its loss is a timeout.
+        if (p.frames_done == 24) scan.head().dropFrames("aux", 1);
+      });
+  EXPECT_EQ(report.retries, 1);
+  EXPECT_EQ(report.frames, 50);
+  EXPECT_EQ(phase.folded("aux"), 50);
+  EXPECT_EQ(report.trigger_jitter.count, 75u) << "the high set swept twice";
+  const PhaseError e =
+      compareWithHead(scan.head(), phase.finalize("main").absolute, report.high_deg.front());
+  EXPECT_LT(e.rms, 0.01);
+  EXPECT_LT(e.worst, 0.1);
+}
+
+TEST(Acquisition, AMissingFrameIsASequenceGap) {
+  // In a sweep the next exposure follows within the timeout: a frame the
+  // camera lost shows as a jump of its sequence number.
+  const FailedScan f = failScan({{"mode = \"stop\"", "mode = \"continuous\""}},
+                                [](Scan& s) { s.head().dropFrames("main", 1); });
+  EXPECT_NE(f.message.find("camera 'main': frame sequence jumped"), std::string::npos) << f.message;
+  EXPECT_NE(f.message.find("a frame was lost"), std::string::npos) << f.message;
+  expectSafe(f);
 }
 
 TEST(Acquisition, ASecondTimeoutFailsTheScan) {
