@@ -12,5 +12,6 @@ void addCalibrateCommand(CLI::App& app);
 void addReconstructCommand(CLI::App& app);
 void addEvaluateCommand(CLI::App& app);
 void addRefineStereoCommand(CLI::App& app);
+void addStudyCommand(CLI::App& app);
 
 }  // namespace cylscan::tools
