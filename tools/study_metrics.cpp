@@ -255,7 +255,7 @@ json acceptanceChecks(const json& results) {
   const double worst = ours.at("sphere_reproducibility").at("radius_worst_error").get<double>();
   checks.push_back(
       check("sphere radius within 0.02 mm of 50 at every sphere pose (ours)",
-            "worst |r - 50| " + mm(worst) + " (paper's method " +
+            "largest deviation of r from 50: " + mm(worst) + " (paper's method " +
                 mm(paper.at("sphere_reproducibility").at("radius_worst_error").get<double>()) + ")",
             worst <= 0.02));
   for (const char* shape : {"sphere", "plane"}) {
