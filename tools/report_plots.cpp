@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 #include <opencv2/imgproc.hpp>
@@ -71,6 +72,22 @@ cv::Mat colourPanel(const cv::Mat& error, double scale, const cv::Mat& lut) {
   return colour;
 }
 
+// The map shrunk to `size`: each output pixel is the mean of the finite
+// errors it covers, NaN where fewer than half of them are finite.
+cv::Mat averaged(const cv::Mat& error, cv::Size size) {
+  cv::Mat finite = (error == error);  // NaN compares unequal
+  cv::Mat values = error.clone();
+  values.setTo(0.0f, ~finite);
+  cv::Mat weight;
+  finite.convertTo(weight, CV_32F, 1.0 / 255);
+  cv::Mat sum, count;
+  cv::resize(values, sum, size, 0, 0, cv::INTER_AREA);
+  cv::resize(weight, count, size, 0, 0, cv::INTER_AREA);
+  cv::Mat out = sum / cv::max(count, 1e-6f);
+  out.setTo(std::numeric_limits<float>::quiet_NaN(), count < 0.5f);
+  return out;
+}
+
 }  // namespace
 
 double symmetricScale(const std::vector<ErrorMapPanel>& panels) {
@@ -105,10 +122,8 @@ cv::Mat drawErrorMaps(const std::vector<ErrorMapPanel>& panels, double scale_mm,
   const cv::Mat lut = divergingLut();
   for (std::size_t i = 0; i < panels.size(); ++i) {
     const int x = margin + static_cast<int>(i) * (panel_width + margin);
-    cv::Mat resized;
-    cv::resize(colourPanel(panels[i].error_mm, scale_mm, lut), resized, {panel_width, panel_height},
-               0, 0, cv::INTER_AREA);
-    resized.copyTo(canvas(cv::Rect(x, top, panel_width, panel_height)));
+    colourPanel(averaged(panels[i].error_mm, {panel_width, panel_height}), scale_mm, lut)
+        .copyTo(canvas(cv::Rect(x, top, panel_width, panel_height)));
     cv::rectangle(canvas, cv::Rect(x - 1, top - 1, panel_width + 2, panel_height + 2), kBlack);
     putLabel(canvas, panels[i].title, {x, top - 8});
   }
@@ -125,7 +140,9 @@ cv::Mat drawErrorMaps(const std::vector<ErrorMapPanel>& panels, double scale_mm,
     putLabel(canvas, format(scale_mm * k / 2, "%+.3g"), {bx + bar_width + 8, y + 5}, 0.4);
   }
   putLabel(canvas, "mm", {bx, top + panel_height + 20}, 0.45);
-  putLabel(canvas, "signed distance to the true surface at each main pixel (u, v); grey: no point",
+  putLabel(canvas,
+           "signed distance to the true surface at the main pixels (u, v), mean per drawn "
+           "pixel; grey: no point",
            {margin, top + panel_height + 22}, 0.42);
   return canvas;
 }
