@@ -14,8 +14,8 @@ struct ErrorMapPanel {
   cv::Mat error_mm;  // CV_32F on the main pixel grid, NaN where there is no point
 };
 
-// The panels side by side, each shrunk to `panel_width` pixels (each drawn
-// pixel the mean error of the main pixels it covers), colour-mapped
+// The panels side by side, each shrunk to `panel_width` pixels in cells of
+// 2 × 2 (each the mean error of the main pixels it covers), colour-mapped
 // (blue-white-red) on the symmetric range ±scale_mm, with one colour bar.
 cv::Mat drawErrorMaps(const std::vector<ErrorMapPanel>& panels, double scale_mm,
                       const std::string& title, int panel_width = 360);
