@@ -192,7 +192,7 @@ cv::Mat drawHistograms(const std::vector<HistogramSeries>& series, double range_
     const double f = peak / 1.1 * k / 4;
     const int y = yOf(f);
     cv::line(canvas, {left - 5, y}, {left, y}, kBlack);
-    const std::string t = format(100 * f, "%.2g%%");
+    const std::string t = format(100 * f, "%.1f%%");
     putLabel(canvas, t, {left - 8 - textWidth(t, 0.4), y + 5}, 0.4);
   }
   putLabel(canvas, x_label, {left + plot_w / 2 - textWidth(x_label) / 2, top + plot_h + 44});
@@ -200,6 +200,7 @@ cv::Mat drawHistograms(const std::vector<HistogramSeries>& series, double range_
   putLabel(vertical, "points per bin", {4, 15});
   cv::rotate(vertical, vertical, cv::ROTATE_90_COUNTERCLOCKWISE);
   vertical.copyTo(canvas(cv::Rect(2, top + plot_h / 2 - 80, 20, 160)));
+  cv::line(canvas, {xOf(0), top}, {xOf(0), top + plot_h}, cv::Scalar(160, 160, 160));
   // One outline per series.
   for (std::size_t s = 0; s < series.size(); ++s) {
     std::vector<cv::Point> outline{{xOf(-range_mm), yOf(0)}};
@@ -212,12 +213,20 @@ cv::Mat drawHistograms(const std::vector<HistogramSeries>& series, double range_
     }
     outline.push_back({xOf(range_mm), yOf(0)});
     cv::polylines(canvas, outline, false, series[s].colour, 2, cv::LINE_AA);
-    const int ly = top + 16 + 20 * static_cast<int>(s);
-    cv::line(canvas, {left + plot_w - 200, ly - 4}, {left + plot_w - 175, ly - 4}, series[s].colour,
-             2);
-    putLabel(canvas, series[s].label, {left + plot_w - 168, ly});
   }
-  cv::line(canvas, {xOf(0), top}, {xOf(0), top + plot_h}, cv::Scalar(160, 160, 160));
+  // Legend in a white box at the top right, over the curves.
+  int label_width = 0;
+  for (const auto& s : series)
+    label_width = std::max(label_width, textWidth(s.label));
+  const int lx = left + plot_w - label_width - 45;
+  cv::rectangle(
+      canvas, cv::Rect(lx - 6, top + 4, label_width + 45, 20 * static_cast<int>(series.size()) + 6),
+      kWhite, cv::FILLED);
+  for (std::size_t s = 0; s < series.size(); ++s) {
+    const int ly = top + 18 + 20 * static_cast<int>(s);
+    cv::line(canvas, {lx, ly - 4}, {lx + 25, ly - 4}, series[s].colour, 2);
+    putLabel(canvas, series[s].label, {lx + 32, ly});
+  }
   cv::rectangle(canvas, plot, kBlack);
   return canvas;
 }
