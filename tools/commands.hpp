@@ -13,5 +13,6 @@ void addReconstructCommand(CLI::App& app);
 void addEvaluateCommand(CLI::App& app);
 void addRefineStereoCommand(CLI::App& app);
 void addScanCommand(CLI::App& app);
+void addStudyCommand(CLI::App& app);
 
 }  // namespace cylscan::tools

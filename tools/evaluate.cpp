@@ -17,6 +17,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -26,6 +27,7 @@
 #include "formats/input_error.hpp"
 #include "formats/point_cloud.hpp"
 #include "tools/commands.hpp"
+#include "tools/scene_truth.hpp"
 
 namespace cylscan::tools {
 namespace {
@@ -93,69 +95,27 @@ nlohmann::json number(double value) {
   return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
 }
 
-// The true surface of `scene` in a truth.json (spec §6): a plane or a sphere.
-struct TrueSurface {
-  std::optional<algo::Plane> plane;
-  std::optional<algo::Sphere> sphere;
-};
-
-Eigen::Vector3d vec3(const nlohmann::json& j, const fs::path& file, const std::string& key) {
-  if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() || !j[2].is_number())
-    throw formats::InputError(file, "'" + key + "' must be an array of 3 numbers");
-  return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
-}
-
-TrueSurface readTrueSurface(const fs::path& file, const std::string& scene) {
-  const nlohmann::json truth = formats::readJsonFile(file, 64u << 20);
-  const nlohmann::json* entry = nullptr;
-  for (const char* group : {"scenes", "calib"}) {
-    if (truth.contains(group) && truth[group].is_object() && truth[group].contains(scene))
-      entry = &truth[group][scene];
-  }
-  if (entry == nullptr || !entry->is_object())
-    throw formats::InputError(file, "has no scene '" + scene + "' under \"scenes\" or \"calib\"");
-  const std::string type = entry->value("type", "");
-  const std::string where = scene + ".";
-  TrueSurface surface;
-  if (type == "plane") {
-    algo::Plane plane;
-    plane.point = vec3(entry->value("point", nlohmann::json()), file, where + "point");
-    plane.normal =
-        vec3(entry->value("normal", nlohmann::json()), file, where + "normal").normalized();
-    surface.plane = plane;
-  } else if (type == "sphere") {
-    algo::Sphere sphere;
-    sphere.centre = vec3(entry->value("center", nlohmann::json()), file, where + "center");
-    const nlohmann::json radius = entry->value("radius", nlohmann::json());
-    if (!radius.is_number() || !(radius.get<double>() > 0))
-      throw formats::InputError(file, "'" + where + "radius' must be a positive number");
-    sphere.radius = radius.get<double>();
-    surface.sphere = sphere;
-  } else {
-    throw formats::InputError(file,
-                              "scene '" + scene + "' is a '" + type +
-                                  "'; only plane and sphere scenes have a single true surface");
-  }
-  return surface;
-}
-
 // The cloud against the true surface: signed distances (RMSE, mean, STD).
 std::optional<nlohmann::json> truthComparison(const EvaluateRequest& request,
                                               const algo::Points3d& points) {
   if (request.truth.empty()) return std::nullopt;
   if (request.scene.empty()) throw std::invalid_argument("evaluate: --truth needs --scene");
-  const TrueSurface surface = readTrueSurface(request.truth, request.scene);
-  const std::vector<double> d = surface.plane ? algo::planeResiduals(points, *surface.plane)
-                                              : algo::sphereResiduals(points, *surface.sphere);
+  const SceneTruth truth = SceneTruth::read(request.truth, request.scene);
+  std::vector<double> d;
+  d.reserve(points.size());
+  for (const Eigen::Vector3d& p : points)
+    d.push_back(truth.signedDistance(p));
   const algo::ResidualStats stats = algo::residualStats(d);
   nlohmann::json out = {{"scene", request.scene},
                         {"rmse_mm", stats.rmse},
                         {"mean_mm", stats.mean},
                         {"std_mm", stats.std},
                         {"points", stats.count}};
-  if (surface.sphere) {
-    out["center"] = vec(surface.sphere->centre);
-    out["radius_mm"] = surface.sphere->radius;
+  const auto* sphere =
+      truth.shapes().size() == 1 ? std::get_if<algo::Sphere>(&truth.shapes().front()) : nullptr;
+  if (sphere != nullptr) {
+    out["center"] = vec(sphere->centre);
+    out["radius_mm"] = sphere->radius;
   }
   return out;
 }
@@ -215,7 +175,7 @@ void runSphere(const EvaluateRequest& request) {
   std::optional<nlohmann::json> truth = truthComparison(request, cloud.points);
   if (truth && truth->contains("center")) {
     (*truth)["centre_offset_mm"] =
-        vec(free.sphere.centre - vec3(truth->at("center"), request.truth, "center"));
+        vec(free.sphere.centre - jsonVec3(truth->at("center"), request.truth, "center"));
   }
   if (request.json) {
     nlohmann::json out{{"shape", "sphere"},

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   cylscan::tools::addCalibrateCommand(app);
   cylscan::tools::addReconstructCommand(app);
   cylscan::tools::addEvaluateCommand(app);
+  cylscan::tools::addStudyCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

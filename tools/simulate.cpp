@@ -50,6 +50,10 @@ struct SimulateRequest {
   int poses = 14;
   int boards = 14;
   int bit_depth = 0;
+  // Scenes of `cylscan study` (rendered with main and aux; none by default).
+  int sphere_poses = 0;
+  int plane_poses = 0;
+  int repeats = 0;
   bool quick = false;
   bool json = false;
 };
@@ -131,6 +135,75 @@ std::vector<sim::Scene> testScenes() {
                                      sphere("sphere_b", {40, 25, 612}, 25),
                                      {"box", box, 0.75}}));
   return scenes;
+}
+
+// The scenes of the paper's experiments for `cylscan study`, with main and
+// aux (so the SV method can be compared on the same frames), listed in
+// truth.json under "study".
+struct StudyScenes {
+  std::vector<sim::Scene> scenes;
+  json index = json::object();
+};
+
+std::string studyName(const std::string& prefix, int i, int n) {
+  return prefix + formats::frameFileName(i, n);
+}
+
+// Sphere poses: the 50 mm sphere with its visible cap inside the working
+// volume (front 540–570 mm, limb at the centre depth 590–620 mm), offsets
+// spread over the field of view. Plane poses: depths 545–615 mm, tilts up to
+// ±8° (x) and ±10° (y), other angles than the calibration poses. Repeats: two
+// fixed poses of each, rendered R times (each scan has its own frame numbers,
+// hence its own noise).
+StudyScenes studyScenes(const SimulateRequest& request) {
+  StudyScenes out;
+  auto spread = [](int i, int n) { return n == 1 ? 0.5 : static_cast<double>(i) / (n - 1); };
+  json spheres = json::array(), planes = json::array();
+  for (int i = 0; i < request.sphere_poses; ++i) {
+    const double t = spread(i, request.sphere_poses);
+    const Vec3 c(22 * std::sin(i * 2.3 + 0.4), 12 * std::cos(i * 1.9 + 0.2), 590 + 30 * t);
+    out.scenes.push_back(
+        scene(studyName("sphere_pose", i, request.sphere_poses), {sphere("sphere", c, 50)}));
+    spheres.push_back(out.scenes.back().name);
+  }
+  for (int i = 0; i < request.plane_poses; ++i) {
+    const double z = 545 + 70 * spread(i, request.plane_poses);
+    out.scenes.push_back(
+        scene(studyName("plane_pose", i, request.plane_poses),
+              {plane("plane", {0, 0, z}, 8 * std::sin(i * 1.3 + 0.9), 10 * std::sin(i * 2.9))}));
+    planes.push_back(out.scenes.back().name);
+  }
+  json sphere_repeats = json::array(), plane_repeats = json::array();
+  if (request.repeats > 0) {
+    const Vec3 sphere_at[] = {{0, 0, 600}, {-18, 10, 612}};
+    struct PlaneAt {
+      double z, rx_deg, ry_deg;
+    };
+    const PlaneAt plane_at[] = {{580, 3, -4}, {605, -1, 2}};
+    for (int pose = 0; pose < 2; ++pose) {
+      json s = json::array(), p = json::array();
+      const std::string tag = std::to_string(pose + 1) + "_r";
+      for (int r = 0; r < request.repeats; ++r) {
+        out.scenes.push_back(scene(studyName("sphere_repeat" + tag, r, request.repeats),
+                                   {sphere("sphere", sphere_at[pose], 50)}));
+        s.push_back(out.scenes.back().name);
+      }
+      const PlaneAt& at = plane_at[pose];
+      for (int r = 0; r < request.repeats; ++r) {
+        out.scenes.push_back(scene(studyName("plane_repeat" + tag, r, request.repeats),
+                                   {plane("plane", {0, 0, at.z}, at.rx_deg, at.ry_deg)}));
+        p.push_back(out.scenes.back().name);
+      }
+      sphere_repeats.push_back(s);
+      plane_repeats.push_back(p);
+    }
+  }
+  out.index = {{"sphere_poses", spheres},
+               {"plane_poses", planes},
+               {"sphere_repeats", sphere_repeats},
+               {"plane_repeats", plane_repeats},
+               {"cameras", {"main", "aux"}}};
+  return out;
 }
 
 // Drives the virtual head as the firmware drives the hardware: step pulses
@@ -493,6 +566,13 @@ void runSimulate(SimulateRequest request) {
     tests.push_back(std::move(s));
   }
 
+  const StudyScenes study = studyScenes(request);
+  for (const auto& s : study.scenes) {
+    if (!names.insert(s.name).second) {
+      throw std::invalid_argument("simulate: study scene name '" + s.name + "' is already used");
+    }
+  }
+
   sim::VirtualHead head(config, sim::Scene{}, request.seed);
   const fs::path out(request.out);
   fs::create_directories(out);
@@ -514,6 +594,12 @@ void runSimulate(SimulateRequest request) {
     writer.writeBundle(out / "test" / s.name, s, {"main"});
     truth["scenes"][s.name] = truthOf(s);
   }
+  // After every default scene, so a dataset without study scenes is unchanged.
+  for (const sim::Scene& s : study.scenes) {
+    writer.writeBundle(out / "test" / s.name, s, {"main", "aux"});
+    truth["scenes"][s.name] = truthOf(s);
+  }
+  if (!study.scenes.empty()) truth["study"] = study.index;
 
   const FringePlan& plan = writer.plan();
   const auto& proj = head.projector().params();
@@ -544,6 +630,7 @@ void runSimulate(SimulateRequest request) {
                       {"board_corner_error_px", writer.cornerError()},
                       {"calib_poses", poses},
                       {"test_scenes", names_json},
+                      {"study_scenes", study.scenes.size()},
                       {"fringe_frames_rendered", writer.frames()},
                       {"high_start_deg", plan.high_start_deg},
                       {"low_start_deg", plan.low_start_deg},
@@ -554,9 +641,10 @@ void runSimulate(SimulateRequest request) {
   } else {
     std::cout << "simulate: " << writer.boards() << " board pairs (corners within "
               << writer.cornerError() << " px), " << poses << " calibration bundles, "
-              << tests.size() << " test scenes (" << main.width() << "x" << main.height()
-              << ", N=" << request.frames << ", noise " << request.noise << ", seed "
-              << request.seed << ") in " << seconds << " s -> " << out.string() << "\n";
+              << tests.size() << " test scenes, " << study.scenes.size() << " study scenes ("
+              << main.width() << "x" << main.height() << ", N=" << request.frames << ", noise "
+              << request.noise << ", seed " << request.seed << ") in " << seconds << " s -> "
+              << out.string() << "\n";
   }
 }
 
@@ -580,6 +668,16 @@ void addSimulateCommand(CLI::App& app) {
   cmd->add_option("--boards", request->boards, "checkerboard poses")->check(CLI::Range(1, 99));
   cmd->add_option("--bit-depth", request->bit_depth, "camera bit depth (8, 10, 12 or 16)")
       ->check(CLI::IsMember({8, 10, 12, 16}));
+  cmd->add_option("--sphere-poses", request->sphere_poses,
+                  "study: poses of the 50 mm sphere (scenes sphere_poseNN, main+aux)")
+      ->check(CLI::Range(0, 99));
+  cmd->add_option("--plane-poses", request->plane_poses,
+                  "study: test plane poses (scenes plane_poseNN, main+aux)")
+      ->check(CLI::Range(0, 99));
+  cmd->add_option("--repeats", request->repeats,
+                  "study: repeated scans of two fixed sphere and plane poses "
+                  "(sphere_repeatP_rNN, plane_repeatP_rNN)")
+      ->check(CLI::Range(0, 99));
   cmd->add_flag("--quick", request->quick, "320x256 unless --width/--height are given");
   cmd->add_flag("--json", request->json, "print the summary as one JSON object");
   cmd->callback([request] { runSimulate(*request); });
