@@ -13,6 +13,9 @@ PKGS=(
   nlohmann-json3-dev       # capture.json, --json output
   libtomlplusplus-dev      # scene and board TOML
   libcli11-dev             # the cylscan command line
+  libmicrohttpd-dev        # cylscand's HTTP API
+  libsystemd-dev           # cylscand: sd_notify READY/WATCHDOG under systemd
+  libcurl4-openssl-dev     # tests: a real HTTP client against the running daemon
   libgtest-dev libgmock-dev
   libbenchmark-dev
 )

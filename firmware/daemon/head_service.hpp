@@ -1,0 +1,121 @@
+// What the daemon's HTTP layer sees of the head: one scan at a time, the
+// stored scans and their files, the installed calibration, live events and
+// the metrics of the real-time loop. `ScanService` (firmware/daemon/scan_service.hpp) is the
+// implementation on a drivers::Board; the HTTP layer (firmware/http/http_api.hpp) knows only
+// this interface, so it never touches the board, the real-time thread or the
+// file system of the data directory itself.
+//
+// Every call is thread-safe and returns quickly: nothing here waits for a
+// scan, a frame or the stage. JSON shapes are those of docs/http-api.md.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+namespace cylscan::firmware {
+
+// A request the service refuses, with the HTTP status that says why:
+// 400 bad options, 404 no such scan, 409 another scan runs (or the scan to
+// delete is running), 413 too large, 422 a calibration that does not fit the
+// board, 507 no room on the disk for one more scan, 503 the head is in a
+// state that cannot scan (e.g. shutting down).
+class ServiceError : public std::runtime_error {
+ public:
+  ServiceError(int http_status, const std::string& message)
+      : std::runtime_error(message), status_(http_status) {}
+  int httpStatus() const { return status_; }
+
+ private:
+  int status_;
+};
+
+// One server-sent event: `event: <name>` and `data: <json>` (one line).
+struct HeadEvent {
+  std::uint64_t seq = 0;  // increasing, for `id:` and Last-Event-ID
+  std::string name;       // "state" | "progress" | "scan" | "error"
+  nlohmann::json data;
+};
+
+// A subscriber's bounded queue of events. When a slow subscriber's queue is
+// full the oldest events are dropped and `dropped()` counts them; the service
+// never blocks on a subscriber.
+class EventStream {
+ public:
+  virtual ~EventStream() = default;
+  // The next event, or nullopt when none came within `timeout` (or the
+  // service is stopping: then `closed()` is true).
+  virtual std::optional<HeadEvent> next(std::chrono::milliseconds timeout) = 0;
+  virtual bool closed() const = 0;
+  virtual std::uint64_t dropped() const = 0;
+};
+
+class HeadService {
+ public:
+  virtual ~HeadService() = default;
+
+  // GET /api/v1/status.
+  virtual nlohmann::json status() const = 0;
+
+  // POST /api/v1/scans: starts a scan with `options` (a JSON object, may be
+  // empty) and returns its id at once. ServiceError 400/409/503/507.
+  virtual std::string startScan(const nlohmann::json& options) = 0;
+
+  // GET /api/v1/scans: newest first.
+  virtual nlohmann::json listScans() const = 0;
+
+  // GET /api/v1/scans/{id}: nullopt when there is no such scan. `id` is
+  // checked by isValidScanId() first; an invalid one is simply not found.
+  virtual std::optional<nlohmann::json> scan(std::string_view id) const = 0;
+
+  // A finished scan's file: `name` is one of scanFileNames(); nullopt when
+  // the scan or the file does not exist (yet). The path is inside the data
+  // directory and is never built from an unchecked string.
+  virtual std::optional<std::filesystem::path> scanFile(std::string_view id,
+                                                        std::string_view name) const = 0;
+
+  // DELETE /api/v1/scans/{id}: false when there is no such scan;
+  // ServiceError 409 while it runs.
+  virtual bool deleteScan(std::string_view id) = 0;
+
+  // PUT /api/v1/calibration: validates the quasi-calibration file's bytes
+  // (magic, version, size, CRC, the board's image size for `camera`) and
+  // installs it atomically in place of the old one. ServiceError 400/422.
+  // Returns calibrationInfo(camera).
+  virtual nlohmann::json installCalibration(std::string_view camera, std::string_view bytes) = 0;
+  // GET /api/v1/calibration (JSON) and its file.
+  virtual nlohmann::json calibrationInfo(std::string_view camera) const = 0;
+  virtual std::optional<std::filesystem::path> calibrationFile(std::string_view camera) const = 0;
+
+  // GET /api/v1/events.
+  virtual std::unique_ptr<EventStream> subscribe() = 0;
+
+  // The service's part of GET /metrics (Prometheus text format 0.0.4):
+  // scans done/failed, scan duration, frame and step timing histograms.
+  virtual std::string metricsText() const = 0;
+};
+
+// The files a scan may have, as the API names them.
+inline constexpr std::string_view kScanFileNames[] = {"cloud.ply", "depth.tiff", "texture.png",
+                                                       "phase.png", "depth.png", "scan.json"};
+
+// Scan ids are what the service makes (e.g. "20261201-160102-3f9a"):
+// [0-9a-z-], 1..64 characters, not starting with '-' or '.'. Everything
+// else is rejected before any lookup.
+inline bool isValidScanId(std::string_view id) {
+  if (id.empty() || id.size() > 64 || id.front() == '-') return false;
+  for (char c : id) {
+    const bool ok = (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+}  // namespace cylscan::firmware
