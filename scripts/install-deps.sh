@@ -18,6 +18,7 @@ PKGS=(
   libcurl4-openssl-dev     # tests: a real HTTP client against the running daemon
   libgtest-dev libgmock-dev
   libbenchmark-dev
+  chromium                 # tests/web: the browser test drives Debian's chromium (no browser download)
 )
 # Hardware backends, from bookworm-backports (bookworm's libgpiod is v1, its
 # libcamera 0.0.3): the libgpiod v2 C++ bindings and libcamera 0.3.
@@ -75,4 +76,13 @@ done
 if [ "${#missing[@]}" -gt 0 ]; then
   update_once
   $SUDO apt-get install -y -q --no-install-recommends -t bookworm-backports "${missing[@]}"
+fi
+
+# The web page is bundled with npm at build time (web/CMakeLists.txt). The
+# machines have Node 20 with its own npm: Debian's nodejs/npm only where there
+# is no npm at all (Debian's Node 18 bundles the page; playwright-core of the
+# browser test wants Node 20).
+if ! command -v npm >/dev/null 2>&1; then
+  update_once
+  $SUDO apt-get install -y -q --no-install-recommends nodejs npm
 fi

@@ -1,0 +1,345 @@
+// The page of cylscand: head status, the Scan button, live progress, the
+// stored scans and, for the selected one, its previews and point cloud.
+
+import './app.css';
+import { ApiError, getBlob, getBytes, getJson, onAuthNeeded, postJson, remove, setToken, token } from './api.js';
+import { connectEvents } from './events.js';
+import { PointCloudViewer } from './viewer.js';
+
+const $ = (id) => document.getElementById(id);
+const DOWNLOADS = ['cloud.ply', 'depth.tiff', 'texture.png'];
+const PREVIEWS = { 'img-texture': 'texture.png', 'img-phase': 'phase.png', 'img-depth': 'depth.png' };
+
+const state = {
+  scans: [], // newest first, as the daemon lists them
+  selected: null, // id of the scan shown below the list
+  started: null, // id of the scan this page started, selected when it is done
+  previewUrls: [],
+  loadAbort: null,
+  viewer: null,
+};
+
+// What the test (and a curious user) can read of the viewer.
+window.cylscanViewer = { pointCount: 0, error: null };
+
+// ----------------------------------------------------------------- formatting
+
+function formatBytes(n) {
+  if (!Number.isFinite(n)) return '–';
+  const units = ['B', 'KiB', 'MiB', 'GiB', 'TiB'];
+  let i = 0;
+  while (n >= 1024 && i < units.length - 1) {
+    n /= 1024;
+    i++;
+  }
+  return `${n.toFixed(i === 0 ? 0 : 1)} ${units[i]}`;
+}
+
+function formatTime(iso) {
+  if (!iso) return '–';
+  const date = new Date(iso);
+  return Number.isNaN(date.getTime()) ? iso : date.toLocaleString();
+}
+
+function element(tag, props = {}, children = []) {
+  const node = document.createElement(tag);
+  Object.assign(node, props);
+  for (const child of children) node.append(child);
+  return node;
+}
+
+function showMessage(text, kind = '') {
+  const box = $('scan-message');
+  box.textContent = text;
+  box.className = `message ${kind}`;
+}
+
+// --------------------------------------------------------------------- status
+
+function showState(value) {
+  const node = $('st-state');
+  node.textContent = value || '–';
+  node.className = `state state-${value}`;
+  $('scan-button').disabled = value === 'scanning';
+}
+
+async function refreshStatus() {
+  try {
+    const status = await getJson('status');
+    showState(status.state);
+    $('st-board').textContent = status.board ?? '–';
+    $('st-version').textContent = status.version ?? '–';
+    const calibrated = status.calibration && status.calibration.main;
+    const cal = $('st-calibration');
+    cal.textContent = calibrated ? 'installed' : 'not installed';
+    cal.className = calibrated ? 'ok' : 'warn';
+    $('st-disk').textContent = formatBytes(status.disk_free_bytes);
+    const lastError = $('last-error');
+    lastError.hidden = !status.last_error;
+    lastError.textContent = status.last_error ? `Last error: ${status.last_error}` : '';
+  } catch (error) {
+    showMessage(`Status: ${error.message}`, 'error');
+  }
+}
+
+function showProgress(event) {
+  $('progress-box').hidden = false;
+  $('progress-bar').value = event.progress ?? 0;
+  const set = event.set ? `, ${event.set} set` : '';
+  $('progress-text').textContent =
+    `${Math.round((event.progress ?? 0) * 100)} % — frame ${event.frames_done}/${event.frames_total}${set}`;
+}
+
+// ---------------------------------------------------------------------- scans
+
+async function startScan() {
+  const button = $('scan-button');
+  button.disabled = true;
+  showMessage('Starting…');
+  try {
+    const { id } = await postJson('scans', {});
+    state.started = id;
+    showMessage(`Scan ${id} started.`, 'ok');
+    $('progress-box').hidden = false;
+    $('progress-bar').value = 0;
+    $('progress-text').textContent = 'waiting for the first frame…';
+    refreshStatus();
+  } catch (error) {
+    button.disabled = false;
+    if (error instanceof ApiError && error.status === 409) {
+      showMessage('The head is busy with another scan; try again when it is done.', 'warn');
+    } else if (error instanceof ApiError && error.status === 507) {
+      showMessage('No room on the disk for another scan: delete some scans.', 'error');
+    } else if (error instanceof ApiError && error.status === 401) {
+      showMessage('A token is needed to scan.', 'warn');
+    } else {
+      showMessage(`Scan refused: ${error.message}`, 'error');
+    }
+  }
+}
+
+async function refreshScans() {
+  try {
+    state.scans = await getJson('scans');
+    renderScans();
+    if (!state.selected) {
+      const newestDone = state.scans.find((s) => s.state === 'done');
+      if (newestDone) select(newestDone.id);
+    }
+  } catch (error) {
+    showMessage(`Scans: ${error.message}`, 'error');
+  }
+}
+
+function upsertScan(scan) {
+  const at = state.scans.findIndex((s) => s.id === scan.id);
+  if (at >= 0) state.scans[at] = scan;
+  else state.scans.unshift(scan);
+  state.scans.sort((a, b) => (a.created < b.created ? 1 : a.created > b.created ? -1 : 0));
+  renderScans();
+}
+
+// A link that downloads with the token when there is one (a plain link can't send headers).
+function downloadLink(id, file) {
+  const path = `scans/${encodeURIComponent(id)}/${file}`;
+  const link = element('a', { href: `api/v1/${path}`, textContent: file, download: `${id}-${file}` });
+  link.addEventListener('click', async (event) => {
+    if (!token()) return;
+    event.preventDefault();
+    try {
+      const url = URL.createObjectURL(await getBlob(path));
+      const a = element('a', { href: url, download: link.download });
+      document.body.append(a);
+      a.click();
+      a.remove();
+      setTimeout(() => URL.revokeObjectURL(url), 60000);
+    } catch (error) {
+      showMessage(`Download of ${file}: ${error.message}`, 'error');
+    }
+  });
+  return link;
+}
+
+function renderScans() {
+  const rows = $('scan-rows');
+  rows.replaceChildren();
+  $('no-scans').hidden = state.scans.length > 0;
+  for (const scan of state.scans) {
+    const row = element('tr', { className: scan.id === state.selected ? 'selected' : '' });
+    row.dataset.id = scan.id;
+    const files = element('td', { className: 'files' });
+    if (scan.state === 'done') {
+      for (const file of DOWNLOADS) {
+        if (!scan.files || scan.files.includes(file)) files.append(downloadLink(scan.id, file), ' ');
+      }
+    }
+    let stateText = scan.state;
+    if (scan.state === 'running') stateText += ` ${Math.round((scan.progress ?? 0) * 100)} %`;
+    const stateCell = element('td', { className: `state state-${scan.state}`, textContent: stateText });
+    if (scan.error) stateCell.title = scan.error;
+    const del = element('button', { type: 'button', className: 'delete', textContent: 'Delete' });
+    del.disabled = scan.state === 'running' || scan.state === 'queued';
+    del.addEventListener('click', (event) => {
+      event.stopPropagation();
+      deleteScan(scan.id);
+    });
+    row.append(
+      element('td', { className: 'id', textContent: scan.id }),
+      stateCell,
+      element('td', { textContent: formatTime(scan.created) }),
+      element('td', { className: 'num', textContent: Number.isFinite(scan.points) ? scan.points.toLocaleString() : '–' }),
+      files,
+      element('td', {}, [del]),
+    );
+    if (scan.state === 'done') row.addEventListener('click', () => select(scan.id));
+    rows.append(row);
+  }
+}
+
+async function deleteScan(id) {
+  if (!window.confirm(`Delete scan ${id} and its files?`)) return;
+  try {
+    await remove(`scans/${encodeURIComponent(id)}`);
+    state.scans = state.scans.filter((s) => s.id !== id);
+    if (state.selected === id) unselect();
+    renderScans();
+    refreshStatus();
+  } catch (error) {
+    showMessage(`Delete ${id}: ${error.message}`, 'error');
+  }
+}
+
+// ------------------------------------------------------------- selected scan
+
+function unselect() {
+  state.selected = null;
+  $('selected').hidden = true;
+  if (state.loadAbort) state.loadAbort.abort();
+  for (const url of state.previewUrls) URL.revokeObjectURL(url);
+  state.previewUrls = [];
+  if (state.viewer) state.viewer.clear();
+  window.cylscanViewer.pointCount = 0;
+}
+
+async function select(id) {
+  if (state.selected === id) return;
+  unselect();
+  state.selected = id;
+  renderScans();
+  $('selected').hidden = false;
+  $('selected-id').textContent = id;
+  const abort = new AbortController();
+  state.loadAbort = abort;
+  const base = `scans/${encodeURIComponent(id)}`;
+
+  for (const [img, file] of Object.entries(PREVIEWS)) {
+    getBlob(`${base}/${file}`, abort.signal)
+      .then((blob) => {
+        const url = URL.createObjectURL(blob);
+        state.previewUrls.push(url);
+        $(img).src = url;
+      })
+      .catch((error) => {
+        if (!abort.signal.aborted) $(img).alt = `${file}: ${error.message}`;
+      });
+  }
+
+  const info = $('viewer-info');
+  info.textContent = 'loading the point cloud…';
+  try {
+    if (!state.viewer) state.viewer = new PointCloudViewer($('viewer'));
+    const bytes = await getBytes(`${base}/cloud.ply`, abort.signal);
+    if (abort.signal.aborted) return;
+    const count = state.viewer.load(bytes);
+    window.cylscanViewer.pointCount = count;
+    info.textContent = `${count.toLocaleString()} points (${formatBytes(bytes.byteLength)}) — drag to orbit, wheel to zoom`;
+  } catch (error) {
+    if (abort.signal.aborted) return;
+    window.cylscanViewer.error = error.message;
+    info.textContent = `Point cloud: ${error.message}`;
+  }
+}
+
+// --------------------------------------------------------------------- events
+
+function onEvent(type, data) {
+  if (type === 'state') {
+    showState(data.state);
+    if (data.state !== 'scanning') refreshStatus();
+  } else if (type === 'progress') {
+    showProgress(data);
+    const scan = state.scans.find((s) => s.id === data.id);
+    if (scan) {
+      scan.progress = data.progress;
+      scan.frames_done = data.frames_done;
+      scan.state = 'running';
+      renderScans();
+    }
+  } else if (type === 'scan') {
+    upsertScan(data);
+    if (data.state === 'done' || data.state === 'failed') {
+      $('progress-box').hidden = true;
+      refreshStatus();
+    }
+    if (data.state === 'done' && (data.id === state.started || !state.selected)) {
+      state.started = null;
+      select(data.id);
+    }
+    if (data.state === 'failed') showMessage(`Scan ${data.id} failed: ${data.error ?? 'unknown error'}`, 'error');
+  } else if (type === 'error') {
+    showMessage(`Scan ${data.id ?? ''} failed: ${data.error}`, 'error');
+  }
+}
+
+function onConnection(what, detail) {
+  const badge = $('connection');
+  if (what === 'open') {
+    badge.textContent = 'live';
+    badge.className = 'badge ok';
+    // Whatever happened while the stream was down.
+    refreshStatus();
+    refreshScans();
+  } else if (what === 'unauthorized') {
+    badge.textContent = 'token needed';
+    badge.className = 'badge warn';
+    askForToken();
+  } else {
+    badge.textContent = `reconnecting in ${Math.round(detail.wait / 1000)} s`;
+    badge.className = 'badge warn';
+  }
+}
+
+// ---------------------------------------------------------------------- token
+
+let events = null;
+
+function askForToken() {
+  $('token-box').hidden = false;
+}
+
+function setupToken() {
+  onAuthNeeded(askForToken);
+  $('token-form').addEventListener('submit', (event) => {
+    event.preventDefault();
+    setToken($('token-input').value.trim());
+    $('token-input').value = '';
+    $('token-box').hidden = true;
+    refreshStatus();
+    refreshScans();
+    if (events) events.retryNow();
+  });
+}
+
+// ----------------------------------------------------------------------- main
+
+function main() {
+  setupToken();
+  $('scan-button').addEventListener('click', startScan);
+  $('colour-mode').addEventListener('change', (event) => state.viewer && state.viewer.colour(event.target.value));
+  $('reset-view').addEventListener('click', () => state.viewer && state.viewer.frame());
+  refreshStatus();
+  refreshScans();
+  events = connectEvents({ onEvent, onConnection });
+}
+
+main();

@@ -1,0 +1,166 @@
+// The point-cloud viewer: a binary PLY (spec §4: float x y z in mm in the
+// main camera frame, OpenCV axes, then extra properties such as intensity)
+// drawn as points with three.js, orbit controls, coloured by intensity or depth.
+
+import {
+  BufferAttribute,
+  Color,
+  PerspectiveCamera,
+  Points,
+  PointsMaterial,
+  Scene,
+  Sphere,
+  Vector3,
+  WebGLRenderer,
+} from 'three';
+import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import { PLYLoader } from 'three/examples/jsm/loaders/PLYLoader.js';
+
+export const BACKGROUND = 0x14181f;
+
+// Low and high values of `values` at the given quantiles (robust to outliers).
+function quantileRange(values, low = 0.01, high = 0.99) {
+  const step = Math.max(1, Math.floor(values.length / 20000));
+  const sample = [];
+  for (let i = 0; i < values.length; i += step) {
+    if (Number.isFinite(values[i])) sample.push(values[i]);
+  }
+  if (sample.length === 0) return [0, 1];
+  sample.sort((a, b) => a - b);
+  const lo = sample[Math.floor(low * (sample.length - 1))];
+  const hi = sample[Math.floor(high * (sample.length - 1))];
+  return hi > lo ? [lo, hi] : [lo, lo + 1];
+}
+
+// A blue → cyan → yellow → red ramp for t in [0, 1].
+function ramp(t, out) {
+  const stops = [
+    [0.0, 0.19, 0.07, 0.55],
+    [0.35, 0.1, 0.65, 0.9],
+    [0.65, 0.95, 0.85, 0.2],
+    [1.0, 0.85, 0.12, 0.1],
+  ];
+  let i = 1;
+  while (i < stops.length - 1 && t > stops[i][0]) i++;
+  const [t0, r0, g0, b0] = stops[i - 1];
+  const [t1, r1, g1, b1] = stops[i];
+  const f = Math.min(1, Math.max(0, (t - t0) / (t1 - t0)));
+  out[0] = r0 + f * (r1 - r0);
+  out[1] = g0 + f * (g1 - g0);
+  out[2] = b0 + f * (b1 - b0);
+}
+
+export class PointCloudViewer {
+  constructor(container) {
+    this.container = container;
+    this.points = null;
+    this.mode = 'intensity';
+    this.frameSphere = null;
+    this.renderer = new WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+    this.renderer.setClearColor(new Color(BACKGROUND));
+    container.appendChild(this.renderer.domElement);
+
+    this.scene = new Scene();
+    this.camera = new PerspectiveCamera(45, 1, 1, 10000);
+    // OpenCV camera frame: y points down, so "up" on screen is -y.
+    this.camera.up.set(0, -1, 0);
+    this.controls = new OrbitControls(this.camera, this.renderer.domElement);
+    this.controls.addEventListener('change', () => this.render());
+
+    this.resizeObserver = new ResizeObserver(() => this.resize());
+    this.resizeObserver.observe(container);
+    this.resize();
+  }
+
+  resize() {
+    const width = this.container.clientWidth || 1;
+    const height = this.container.clientHeight || 1;
+    this.renderer.setSize(width, height, false);
+    this.camera.aspect = width / height;
+    this.camera.updateProjectionMatrix();
+    this.render();
+  }
+
+  render() {
+    this.renderer.render(this.scene, this.camera);
+  }
+
+  clear() {
+    if (this.points) {
+      this.scene.remove(this.points);
+      this.points.geometry.dispose();
+      this.points.material.dispose();
+      this.points = null;
+    }
+    this.frameSphere = null;
+    this.render();
+  }
+
+  // Shows the cloud of a PLY file's bytes; returns its number of points.
+  load(bytes) {
+    const loader = new PLYLoader();
+    loader.setCustomPropertyNameMapping({ intensity: ['intensity'] });
+    const geometry = loader.parse(bytes);
+    geometry.deleteAttribute('normal');
+    this.clear();
+    const count = geometry.getAttribute('position').count;
+    geometry.setAttribute('color', new BufferAttribute(new Float32Array(count * 3), 3));
+    const material = new PointsMaterial({ size: 2, sizeAttenuation: false, vertexColors: true });
+    this.points = new Points(geometry, material);
+    this.scene.add(this.points);
+    this.colour(this.mode);
+    this.frame();
+    return count;
+  }
+
+  // Colours the points by 'intensity' (normalised to its 1–99 % range; grey
+  // ramp) or 'depth' (z, colour ramp). Without an intensity property: depth.
+  colour(mode) {
+    this.mode = mode;
+    if (!this.points) return;
+    const geometry = this.points.geometry;
+    const intensity = geometry.getAttribute('intensity');
+    const colours = geometry.getAttribute('color');
+    const out = [0, 0, 0];
+    if (mode === 'intensity' && intensity) {
+      const values = intensity.array;
+      const [lo, hi] = quantileRange(values);
+      for (let i = 0; i < values.length; i++) {
+        const g = 0.08 + 0.92 * Math.min(1, Math.max(0, (values[i] - lo) / (hi - lo)));
+        colours.setXYZ(i, g, g, g);
+      }
+    } else {
+      const positions = geometry.getAttribute('position');
+      const z = new Float32Array(positions.count);
+      for (let i = 0; i < z.length; i++) z[i] = positions.getZ(i);
+      const [lo, hi] = quantileRange(z);
+      for (let i = 0; i < z.length; i++) {
+        ramp((z[i] - lo) / (hi - lo), out);
+        colours.setXYZ(i, out[0], out[1], out[2]);
+      }
+    }
+    colours.needsUpdate = true;
+    this.render();
+  }
+
+  // Looks at the cloud's bounding sphere from the camera side (−z), all of it in view.
+  frame() {
+    if (!this.points) return;
+    const geometry = this.points.geometry;
+    geometry.computeBoundingSphere();
+    const sphere = geometry.boundingSphere || new Sphere(new Vector3(), 100);
+    const radius = Math.max(sphere.radius, 1);
+    const halfFov = ((this.camera.fov / 2) * Math.PI) / 180;
+    const fit = Math.min(halfFov, Math.atan(Math.tan(halfFov) * this.camera.aspect));
+    const distance = (radius / Math.sin(fit)) * 1.05;
+    this.camera.position.copy(sphere.center).add(new Vector3(0, 0, -distance));
+    // Room to orbit and zoom out without clipping the cloud.
+    this.camera.near = radius / 100;
+    this.camera.far = (distance + radius) * 10;
+    this.camera.updateProjectionMatrix();
+    this.controls.target.copy(sphere.center);
+    this.controls.update();
+    this.render();
+  }
+}
