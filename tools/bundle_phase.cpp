@@ -49,20 +49,6 @@ algo::PhaseEngine makeEngine(const formats::CaptureBundleReader& bundle, cv::Siz
 
 }  // namespace
 
-PhaseChoice parsePhaseChoice(const std::string& name) {
-  if (name == "high") return PhaseChoice::kHigh;
-  if (name == "fused") return PhaseChoice::kFused;
-  throw std::invalid_argument("--phase must be 'high' or 'fused', not '" + name + "'");
-}
-
-std::string toString(PhaseChoice choice) {
-  return choice == PhaseChoice::kHigh ? "high" : "fused";
-}
-
-const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseChoice choice) {
-  return choice == PhaseChoice::kHigh ? maps.absolute : maps.fused;
-}
-
 void requireCamera(const formats::CaptureBundleReader& bundle, const std::string& camera) {
   if (!bundle.hasCamera(camera)) {
     throw formats::InputError(bundle.dir() / "capture.json",

@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 
 #include "algo/phase_engine.hpp"
+#include "firmware/reconstruction.hpp"
 #include "formats/capture_bundle.hpp"
 
 namespace cylscan::tools {
@@ -26,14 +27,12 @@ struct BundlePhase {
   double finalize_ms = 0;
 };
 
-// Which absolute phase a command works on: Φ of the high set, or the fused one.
-enum class PhaseChoice { kHigh, kFused };
-
-// "high" / "fused"; std::invalid_argument otherwise.
-PhaseChoice parsePhaseChoice(const std::string& name);
-std::string toString(PhaseChoice choice);
-// The map of `maps` for the choice (CV_32F, NaN where invalid); shares the data.
-const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseChoice choice);
+// Which absolute phase a command works on (firmware/reconstruction.hpp, shared
+// with the daemon): Φ of the high set, or the fused one.
+using firmware::absolutePhase;
+using firmware::parsePhaseChoice;
+using firmware::PhaseChoice;
+using firmware::toString;
 
 // Runs the engine over all frames of `camera`. InputError naming capture.json
 // when the camera is missing or the angles are unusable, naming the frame when

@@ -67,14 +67,10 @@ void checkMethodOptions(const ReconstructRequest& request) {
   }
 }
 
-PhaseChoice choiceOf(algo::PhaseSource source) {
-  return source == algo::PhaseSource::kHigh ? PhaseChoice::kHigh : PhaseChoice::kFused;
-}
-
 // The polynomials take the phase they were fitted on; another one is refused.
 PhaseChoice phaseForCalibration(const ReconstructRequest& request,
                                 const algo::QuasiCalibration& calib) {
-  const PhaseChoice recorded = choiceOf(calib.info().phase_source);
+  const PhaseChoice recorded = firmware::phaseChoiceOf(calib.info().phase_source);
   if (request.phase.empty()) return recorded;
   const PhaseChoice asked = parsePhaseChoice(request.phase);
   if (asked != recorded) {

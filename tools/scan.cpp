@@ -144,11 +144,9 @@ void runScan(const ScanRequest& request) {
   if (!request.out.empty()) summary["out"] = request.out;
   if (calib) {
     const algo::PhaseMaps maps = phase.finalize("main");
-    const PhaseChoice choice =
-        request.phase.empty()
-            ? (calib->info().phase_source == algo::PhaseSource::kHigh ? PhaseChoice::kHigh
-                                                                      : PhaseChoice::kFused)
-            : parsePhaseChoice(request.phase);
+    const PhaseChoice choice = request.phase.empty()
+                                   ? firmware::phaseChoiceOf(calib->info().phase_source)
+                                   : parsePhaseChoice(request.phase);
     const cv::Mat xyz = calib->evaluate(absolutePhase(maps, choice));
     const formats::PointCloud cloud = cloudOfMaps(xyz, maps.texture);
     formats::writePly(request.cloud, cloud);

@@ -1,0 +1,126 @@
+#include "firmware/reconstruction.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <stdexcept>
+#include <string>
+
+#include <opencv2/imgproc.hpp>
+
+#include "formats/file_reading.hpp"
+#include "formats/input_error.hpp"
+
+namespace cylscan::firmware {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+
+bool finite3(const cv::Vec3f& p) {
+  return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
+}
+
+}  // namespace
+
+PhaseChoice parsePhaseChoice(const std::string& name) {
+  if (name == "high") return PhaseChoice::kHigh;
+  if (name == "fused") return PhaseChoice::kFused;
+  throw std::invalid_argument("--phase must be 'high' or 'fused', not '" + name + "'");
+}
+
+std::string toString(PhaseChoice choice) {
+  return choice == PhaseChoice::kHigh ? "high" : "fused";
+}
+
+const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseChoice choice) {
+  return choice == PhaseChoice::kHigh ? maps.absolute : maps.fused;
+}
+
+PhaseChoice phaseChoiceOf(algo::PhaseSource source) {
+  return source == algo::PhaseSource::kHigh ? PhaseChoice::kHigh : PhaseChoice::kFused;
+}
+
+algo::QuasiCalibration readQuasiCalibration(const fs::path& file) {
+  const std::string bytes = formats::readFileContents(file, kMaxCalibrationFileBytes);
+  try {
+    return algo::QuasiCalibration::deserialize(
+        std::as_bytes(std::span<const char>(bytes.data(), bytes.size())));
+  } catch (const std::invalid_argument& e) {
+    throw formats::InputError(file, e.what());
+  }
+}
+
+formats::PointCloud cloudOfMaps(const cv::Mat& xyz, const cv::Mat& texture) {
+  formats::PointCloud cloud;
+  cloud.property_names = {"intensity", "u", "v"};
+  cloud.properties.resize(3);
+  for (int v = 0; v < xyz.rows; ++v) {
+    const auto* row = xyz.ptr<cv::Vec3f>(v);
+    const float* intensity = texture.ptr<float>(v);
+    for (int u = 0; u < xyz.cols; ++u) {
+      const cv::Vec3f& p = row[u];
+      if (!finite3(p)) continue;
+      cloud.xyz.insert(cloud.xyz.end(), {p[0], p[1], p[2]});
+      cloud.properties[0].push_back(intensity[u]);
+      cloud.properties[1].push_back(static_cast<float>(u));
+      cloud.properties[2].push_back(static_cast<float>(v));
+    }
+  }
+  return cloud;
+}
+
+cv::Mat depthOfMap(const cv::Mat& xyz) {
+  cv::Mat depth(xyz.size(), CV_32F);
+  for (int v = 0; v < xyz.rows; ++v) {
+    const auto* row = xyz.ptr<cv::Vec3f>(v);
+    float* out = depth.ptr<float>(v);
+    for (int u = 0; u < xyz.cols; ++u)
+      out[u] = finite3(row[u]) ? row[u][2] : kNaNf;
+  }
+  return depth;
+}
+
+cv::Mat previewOfMap(const cv::Mat& map) {
+  if (map.type() != CV_32FC1) throw std::invalid_argument("previewOfMap: the map must be CV_32FC1");
+  double lo = std::numeric_limits<double>::infinity();
+  double hi = -lo;
+  cv::Mat valid(map.size(), CV_8U);
+  for (int v = 0; v < map.rows; ++v) {
+    const float* row = map.ptr<float>(v);
+    std::uint8_t* ok = valid.ptr<std::uint8_t>(v);
+    for (int u = 0; u < map.cols; ++u) {
+      ok[u] = std::isfinite(row[u]) ? 255 : 0;
+      if (ok[u]) {
+        lo = std::min(lo, static_cast<double>(row[u]));
+        hi = std::max(hi, static_cast<double>(row[u]));
+      }
+    }
+  }
+  cv::Mat grey(map.size(), CV_8U, cv::Scalar(0));
+  if (lo <= hi) {
+    const double scale = hi > lo ? 255.0 / (hi - lo) : 0.0;
+    for (int v = 0; v < map.rows; ++v) {
+      const float* row = map.ptr<float>(v);
+      std::uint8_t* out = grey.ptr<std::uint8_t>(v);
+      for (int u = 0; u < map.cols; ++u)
+        if (std::isfinite(row[u])) out[u] = cv::saturate_cast<std::uint8_t>((row[u] - lo) * scale);
+    }
+  }
+  cv::Mat colour;
+  cv::applyColorMap(grey, colour, cv::COLORMAP_TURBO);
+  cv::Mat out(map.size(), CV_8UC3, cv::Scalar::all(0));
+  colour.copyTo(out, valid);
+  return out;
+}
+
+cv::Mat textureImage(const cv::Mat& texture, int bit_depth) {
+  const double full = std::ldexp(1.0, std::clamp(bit_depth, 1, 16)) - 1.0;
+  cv::Mat out;
+  texture.convertTo(out, CV_8U, 255.0 / full);
+  return out;
+}
+
+}  // namespace cylscan::firmware

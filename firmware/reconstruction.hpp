@@ -1,0 +1,51 @@
+// From a scan's phase maps to its outputs, shared by `cylscan scan`,
+// `cylscan reconstruct` and the daemon: the quasi-calibration file, the
+// choice of absolute phase (fused or high), the point cloud and depth map of
+// an xyz map, and colour-mapped previews of phase and depth.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "algo/phase_engine.hpp"
+#include "algo/quasi_calibration.hpp"
+#include "formats/point_cloud.hpp"
+
+namespace cylscan::firmware {
+
+// Which absolute phase is used: Φ of the high set, or the fused one.
+enum class PhaseChoice { kHigh, kFused };
+
+// "high" / "fused"; std::invalid_argument otherwise.
+PhaseChoice parsePhaseChoice(const std::string& name);
+std::string toString(PhaseChoice choice);
+// The map of `maps` for the choice (CV_32F, NaN where invalid); shares the data.
+const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseChoice choice);
+// The phase a calibration was fitted on.
+PhaseChoice phaseChoiceOf(algo::PhaseSource source);
+
+// The largest quasi-calibration the format allows (2^25 pixels × 57 bytes) and a bit.
+inline constexpr std::uintmax_t kMaxCalibrationFileBytes = (std::uintmax_t{1} << 25) * 57 + 4096;
+
+// The calibration file; InputError naming it when it is unreadable, corrupt,
+// truncated or too large.
+algo::QuasiCalibration readQuasiCalibration(const std::filesystem::path& file);
+
+// The cloud of every finite point of an xyz map (CV_32FC3, NaN invalid) with
+// the properties intensity (from `texture`, CV_32F counts), u and v.
+formats::PointCloud cloudOfMaps(const cv::Mat& xyz, const cv::Mat& texture);
+
+// Z of an xyz map, NaN where any coordinate is not finite (CV_32F).
+cv::Mat depthOfMap(const cv::Mat& xyz);
+
+// A colour-mapped preview (CV_8UC3, BGR) of a CV_32F map: the finite values
+// stretched from their minimum to their maximum over the turbo colour map,
+// non-finite pixels black. An all-invalid map is all black.
+cv::Mat previewOfMap(const cv::Mat& map);
+// The same as a texture preview: CV_8UC1, counts scaled by 255 / (2^bit_depth − 1).
+cv::Mat textureImage(const cv::Mat& texture, int bit_depth);
+
+}  // namespace cylscan::firmware
