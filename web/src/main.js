@@ -108,6 +108,7 @@ async function startScan() {
     button.disabled = false;
     if (error instanceof ApiError && error.status === 409) {
       showMessage('The head is busy with another scan; try again when it is done.', 'warn');
+      refreshStatus();
     } else if (error instanceof ApiError && error.status === 507) {
       showMessage('No room on the disk for another scan: delete some scans.', 'error');
     } else if (error instanceof ApiError && error.status === 401) {

@@ -50,6 +50,36 @@ function ramp(t, out) {
   out[2] = b0 + f * (b1 - b0);
 }
 
+// Typical distance (mm) between neighbouring points, the size a point is
+// drawn with so that a surface looks closed at any zoom. Clouds of the head
+// keep each point's pixel (u, v): the median distance between points of
+// horizontally adjacent pixels. Otherwise a guess from the bounding sphere.
+function pointSpacing(geometry) {
+  const positions = geometry.getAttribute('position');
+  const u = geometry.getAttribute('u');
+  const v = geometry.getAttribute('v');
+  const gaps = [];
+  if (u && v) {
+    const step = Math.max(1, Math.floor(positions.count / 20000));
+    for (let i = 0; i + 1 < positions.count; i += step) {
+      if (v.getX(i + 1) !== v.getX(i) || u.getX(i + 1) - u.getX(i) !== 1) continue;
+      gaps.push(
+        Math.hypot(
+          positions.getX(i + 1) - positions.getX(i),
+          positions.getY(i + 1) - positions.getY(i),
+          positions.getZ(i + 1) - positions.getZ(i),
+        ),
+      );
+    }
+  }
+  if (gaps.length >= 10) {
+    gaps.sort((a, b) => a - b);
+    return gaps[Math.floor(gaps.length / 2)];
+  }
+  const radius = geometry.boundingSphere ? geometry.boundingSphere.radius : 100;
+  return radius * Math.sqrt(Math.PI / Math.max(1, positions.count));
+}
+
 export class PointCloudViewer {
   constructor(container) {
     this.container = container;
@@ -100,13 +130,19 @@ export class PointCloudViewer {
   // Shows the cloud of a PLY file's bytes; returns its number of points.
   load(bytes) {
     const loader = new PLYLoader();
-    loader.setCustomPropertyNameMapping({ intensity: ['intensity'] });
+    loader.setCustomPropertyNameMapping({ intensity: ['intensity'], u: ['u'], v: ['v'] });
     const geometry = loader.parse(bytes);
     geometry.deleteAttribute('normal');
     this.clear();
     const count = geometry.getAttribute('position').count;
     geometry.setAttribute('color', new BufferAttribute(new Float32Array(count * 3), 3));
-    const material = new PointsMaterial({ size: 2, sizeAttenuation: false, vertexColors: true });
+    geometry.computeBoundingSphere();
+    // A point covers 1.5 spacings on screen at any distance: three.js draws an
+    // attenuated point `size` × (viewport height / 2) / depth pixels wide,
+    // while a length L at that depth is L × (height / 2) / (depth × tan(fov / 2)).
+    const halfFov = ((this.camera.fov / 2) * Math.PI) / 180;
+    const size = 1.5 * pointSpacing(geometry) / Math.tan(halfFov);
+    const material = new PointsMaterial({ size, sizeAttenuation: true, vertexColors: true });
     this.points = new Points(geometry, material);
     this.scene.add(this.points);
     this.colour(this.mode);
@@ -144,7 +180,8 @@ export class PointCloudViewer {
     this.render();
   }
 
-  // Looks at the cloud's bounding sphere from the camera side (−z), all of it in view.
+  // Looks at the cloud's bounding sphere from the camera side (−z, a little
+  // off-axis), all of it in view.
   frame() {
     if (!this.points) return;
     const geometry = this.points.geometry;
@@ -154,7 +191,9 @@ export class PointCloudViewer {
     const halfFov = ((this.camera.fov / 2) * Math.PI) / 180;
     const fit = Math.min(halfFov, Math.atan(Math.tan(halfFov) * this.camera.aspect));
     const distance = (radius / Math.sin(fit)) * 1.05;
-    this.camera.position.copy(sphere.center).add(new Vector3(0, 0, -distance));
+    // From the head's side, turned a little so that depth shows.
+    const from = new Vector3(0.35, -0.25, -1).normalize().multiplyScalar(distance);
+    this.camera.position.copy(sphere.center).add(from);
     // Room to orbit and zoom out without clipping the cloud.
     this.camera.near = radius / 100;
     this.camera.far = (distance + radius) * 10;
