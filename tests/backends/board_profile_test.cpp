@@ -85,10 +85,10 @@ TEST(BoardProfile, ScanDefaultsUseTheRightHalvesOfTheSimCylinder) {
   }
 }
 
-TEST(BoardProfile, LoadsTheRpi5Example) {
-  const BoardProfile p = loadBoardProfile(boardDir("rpi5-v4l2") / "board.toml");
-  EXPECT_EQ(p.name, "rpi5-v4l2");
-  EXPECT_NE(p.description.find("EXAMPLE"), std::string::npos);
+TEST(BoardProfile, LoadsTheRpi5Profile) {
+  const BoardProfile p = loadBoardProfile(boardDir("rpi5") / "board.toml");
+  EXPECT_EQ(p.name, "rpi5");
+  EXPECT_NE(p.description.find("Raspberry Pi 5"), std::string::npos);
   EXPECT_FALSE(p.sim.has_value());
   EXPECT_EQ(p.gpio.step.name, "GPIO17");
   EXPECT_TRUE(p.gpio.enable.active_low);

@@ -114,7 +114,7 @@ height = 48
 }
 
 TEST(Board, ASceneIsOnlyForTheVirtualHead) {
-  EXPECT_THROW(Board::open(boardDir("rpi5-v4l2"), boardDir("sim") / "scenes" / "checkerboard.toml"),
+  EXPECT_THROW(Board::open(boardDir("rpi5"), boardDir("sim") / "scenes" / "checkerboard.toml"),
                std::invalid_argument);
 }
 
@@ -122,7 +122,7 @@ TEST(Board, AHardwareBoardWithoutItsDevicesSaysWhichIsMissing) {
   if (std::filesystem::exists("/dev/video0")) GTEST_SKIP() << "this machine has /dev/video0";
 #ifdef CYLSCAN_HAVE_GPIOD
   try {
-    Board::open(boardDir("rpi5-v4l2"));
+    Board::open(boardDir("rpi5"));
     FAIL() << "opened a board whose camera does not exist";
   } catch (const CameraError& e) {
     const std::string what = e.what();
@@ -132,11 +132,11 @@ TEST(Board, AHardwareBoardWithoutItsDevicesSaysWhichIsMissing) {
 #else
   // Without the gpiod backend the board cannot have its lines, and says so.
   try {
-    Board::open(boardDir("rpi5-v4l2"));
+    Board::open(boardDir("rpi5"));
     FAIL() << "opened a hardware board without a GPIO backend";
   } catch (const GpioError& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("rpi5-v4l2"), std::string::npos) << what;
+    EXPECT_NE(what.find("rpi5"), std::string::npos) << what;
     EXPECT_NE(what.find("CYLSCAN_WITH_GPIOD"), std::string::npos) << what;
   }
 #endif
