@@ -187,7 +187,9 @@ function renderScans() {
     row.append(
       element('td', { className: 'id', textContent: scan.id }),
       stateCell,
-      element('td', { textContent: formatTime(scan.created) }),
+      element('td', {
+        textContent: formatTime(scan.created) + (Number.isFinite(scan.duration_s) ? ` (${scan.duration_s.toFixed(1)} s)` : ''),
+      }),
       element('td', { className: 'num', textContent: Number.isFinite(scan.points) ? scan.points.toLocaleString() : '–' }),
       files,
       element('td', {}, [del]),
