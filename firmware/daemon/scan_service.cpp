@@ -1,0 +1,644 @@
+#include "firmware/daemon/scan_service.hpp"
+
+#include <time.h>
+
+#include <algorithm>
+#include <array>
+#include <random>
+#include <span>
+
+#include "firmware/bundle_sink.hpp"
+#include "firmware/daemon/log.hpp"
+#include "firmware/phase_sink.hpp"
+#include "firmware/reconstruction.hpp"
+#include "firmware/scan_plan.hpp"
+#include "formats/images.hpp"
+
+namespace cylscan::firmware {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+// What a scan's outputs take a pixel, at most: cloud.ply (xyz + 3 properties,
+// 24 B), depth.tiff (4 B), texture.png (1 B), phase.png and depth.png (3 B each).
+constexpr std::uint64_t kOutputBytesPerPixel = 36;
+
+std::string isoTime(std::chrono::system_clock::time_point t) {
+  const std::time_t secs = std::chrono::system_clock::to_time_t(t);
+  std::tm tm{};
+  gmtime_r(&secs, &tm);
+  std::array<char, 32> buf{};
+  std::strftime(buf.data(), buf.size(), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf.data();
+}
+
+json jitterJson(const drivers::JitterStats::Snapshot& s) {
+  auto us = [](std::chrono::nanoseconds t) { return static_cast<double>(t.count()) / 1e3; };
+  return {{"count", s.count}, {"p50_us", us(s.p50)}, {"p99_us", us(s.p99)}, {"max_us", us(s.max)}};
+}
+
+double secondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+[[noreturn]] void badOption(const std::string& key, const std::string& fault) {
+  throw ServiceError(400, key + ": " + fault);
+}
+
+bool isSceneName(const std::string& name) {
+  if (name.empty() || name.size() > 128 || name.front() == '.') return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
+           c == '_' || c == '-';
+  });
+}
+
+const std::vector<double>& durationBoundsSeconds() {
+  static const std::vector<double> bounds = {1, 2, 5, 10, 20, 30, 60, 120, 300, 600};
+  return bounds;
+}
+
+}  // namespace
+
+struct ScanService::Request {
+  json given = json::object();
+  ScanOptions scan;
+  bool save_bundle = false;
+  std::optional<PhaseChoice> phase_asked;  // given in the POST
+  PhaseChoice phase_default = PhaseChoice::kFused;
+  std::optional<fs::path> scene;
+  int frames_total = 0;
+};
+
+struct ScanService::Job {
+  std::string id;
+  Request request;
+  json object;  // the scan object; mutex_
+  Clock::time_point started = Clock::now();
+};
+
+ScanServiceOptions scanServiceOptions(const DaemonConfig& config, std::string version) {
+  ScanServiceOptions o;
+  o.board = config.board;
+  o.data_dir = config.data_dir;
+  o.retention = config.retention;
+  o.scan = config.scan;
+  o.max_calibration_bytes = config.max_calibration_bytes;
+  o.version = std::move(version);
+  return o;
+}
+
+ScanService::ScanService(ScanServiceOptions options)
+    : options_(std::move(options)),
+      store_(options_.data_dir),
+      scan_duration_(durationBoundsSeconds()) {
+  board_ = std::make_unique<drivers::Board>(drivers::Board::open(options_.board));
+  profile_ = board_->profile();
+  board_name_ = profile_.name;
+  scenes_dir_ = profile_.file.parent_path() / "scenes";
+  acquisition_ = std::make_unique<Acquisition>(*board_);
+  scans_total_.inc("done", 0);
+  scans_total_.inc("failed", 0);
+  loadCalibrationInfo();
+  worker_ = std::thread([this] { worker(); });
+}
+
+ScanService::~ScanService() {
+  stop();
+}
+
+void ScanService::stop() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  // Acquisition::run clears an abort that comes before it starts, so the
+  // abort is repeated until the worker has finished.
+  for (;;) {
+    {
+      std::lock_guard lock(acquisition_mutex_);
+      if (acquisition_) acquisition_->abort();
+    }
+    std::unique_lock lock(mutex_);
+    if (cv_.wait_for(lock, std::chrono::milliseconds(20), [&] { return worker_done_; })) break;
+  }
+  if (worker_.joinable()) worker_.join();
+  events_.close();
+}
+
+bool ScanService::waitUntilIdle(std::chrono::milliseconds timeout) const {
+  std::unique_lock lock(mutex_);
+  return cv_.wait_for(lock, timeout, [&] { return !job_; });
+}
+
+void ScanService::loadCalibrationInfo() {
+  std::map<std::string, json, std::less<>> infos;
+  for (const std::string& camera : board_->cameraNames()) {
+    const fs::path file = store_.calibrationPath(camera);
+    std::error_code ec;
+    if (!fs::exists(file, ec)) continue;
+    try {
+      const algo::QuasiCalibration calib = readQuasiCalibration(file);
+      const auto& c = profile_.camera(camera).config;
+      calib.requireImageSize({c.width, c.height});
+      infos[camera] = {{"installed", true},
+                       {"bytes", fs::file_size(file)},
+                       {"width", calib.size().width},
+                       {"height", calib.size().height},
+                       {"phase_source", toString(phaseChoiceOf(calib.info().phase_source))}};
+    } catch (const std::exception& e) {
+      logWarn("the installed calibration " + file.string() + " is not used: " + e.what());
+    }
+  }
+  std::lock_guard lock(mutex_);
+  calibration_info_ = std::move(infos);
+}
+
+ScanService::Request ScanService::validate(const json& options) const {
+  Request r;
+  if (!options.is_null() && !options.is_object())
+    throw ServiceError(400, "options: must be a JSON object");
+  if (options.is_object()) r.given = options;
+  static const std::array<std::string_view, 5> kKeys = {"mode", "frames", "save_bundle", "phase",
+                                                        "scene"};
+  for (const auto& [key, value] : r.given.items()) {
+    if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end())
+      badOption(key, "unknown option (known: mode, frames, save_bundle, phase, scene)");
+  }
+  r.scan = scanOptionsFrom(profile_);
+  r.save_bundle = options_.scan.save_bundle.value_or(profile_.scan.save_bundle);
+  std::optional<std::string> mode = options_.scan.mode;
+  std::optional<int> frames = options_.scan.frames;
+  if (options_.scan.phase) r.phase_default = parsePhaseChoice(*options_.scan.phase);
+
+  if (r.given.contains("mode")) {
+    const json& v = r.given["mode"];
+    if (!v.is_string() || (v != "stop" && v != "continuous"))
+      badOption("mode", "must be \"stop\" or \"continuous\"");
+    mode = v.get<std::string>();
+  }
+  if (r.given.contains("frames")) {
+    const json& v = r.given["frames"];
+    if (!v.is_number_integer() || v.get<std::int64_t>() < 3 || v.get<std::int64_t>() > 1000)
+      badOption("frames", "must be an integer from 3 to 1000");
+    frames = v.get<int>();
+  }
+  if (r.given.contains("save_bundle")) {
+    const json& v = r.given["save_bundle"];
+    if (!v.is_boolean()) badOption("save_bundle", "must be true or false");
+    r.save_bundle = v.get<bool>();
+  }
+  if (r.given.contains("phase")) {
+    const json& v = r.given["phase"];
+    if (!v.is_string() || (v != "fused" && v != "high"))
+      badOption("phase", "must be \"fused\" or \"high\"");
+    r.phase_asked = parsePhaseChoice(v.get<std::string>());
+  }
+  if (r.given.contains("scene")) {
+    const json& v = r.given["scene"];
+    if (!profile_.sim) badOption("scene", "the board '" + board_name_ + "' is not a virtual head");
+    if (!v.is_string() || !isSceneName(v.get<std::string>()))
+      badOption("scene", "must be a file name in the board's scenes/ folder");
+    const fs::path file = scenes_dir_ / v.get<std::string>();
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec))
+      badOption("scene", "no scene '" + v.get<std::string>() + "' in " + scenes_dir_.string());
+    r.scene = file;
+  }
+  if (mode)
+    r.scan.mode =
+        *mode == "continuous" ? drivers::ScanMode::Continuous : drivers::ScanMode::StopAndGo;
+  if (frames) r.scan.frames_high = r.scan.frames_low = *frames;
+  r.scan.cameras = {"main"};
+  try {
+    const ScanPlan plan = planScan(r.scan, profile_.stage);
+    r.frames_total = plan.frames();
+  } catch (const std::invalid_argument& e) {
+    badOption(r.given.contains("frames") ? "frames" : "options", e.what());
+  }
+  return r;
+}
+
+std::uint64_t ScanService::scanEstimateBytes(const json& options) const {
+  const Request r = validate(options);
+  const auto& main = profile_.camera("main").config;
+  const std::uint64_t pixels = static_cast<std::uint64_t>(std::max(main.width, 0)) *
+                               static_cast<std::uint64_t>(std::max(main.height, 0));
+  std::uint64_t bytes = pixels * kOutputBytesPerPixel + 65536;
+  if (r.save_bundle)
+    bytes += static_cast<std::uint64_t>(r.frames_total) * pixels * (main.bit_depth > 8 ? 2 : 1);
+  return bytes;
+}
+
+std::string ScanService::newScanId() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t secs = std::chrono::system_clock::to_time_t(now);
+  std::tm tm{};
+  gmtime_r(&secs, &tm);
+  std::array<char, 32> stamp{};
+  std::strftime(stamp.data(), stamp.size(), "%Y%m%d-%H%M%S", &tm);
+  static thread_local std::mt19937 rng{std::random_device{}()};
+  // Within one second the suffixes increase, so ids sort as they were made.
+  unsigned suffix = std::uniform_int_distribution<unsigned>(0, 0x7fff)(rng);
+  if (last_id_.starts_with(stamp.data()) && last_id_.size() == 20)
+    suffix = static_cast<unsigned>(std::stoul(last_id_.substr(16), nullptr, 16)) + 1;
+  for (;; ++suffix) {
+    std::array<char, 8> hex{};
+    std::snprintf(hex.data(), hex.size(), "%04x", suffix & 0xffffu);
+    std::string id = std::string(stamp.data()) + "-" + hex.data();
+    if (!store_.get(id)) {
+      last_id_ = id;
+      return id;
+    }
+  }
+}
+
+json ScanService::stateJson() const {
+  const std::string state = job_ ? "scanning" : last_error_ ? "error" : "idle";
+  return {{"state", state}, {"scan", job_ ? json(job_->id) : json(nullptr)}};
+}
+
+void ScanService::publishState() {
+  events_.publish("state", stateJson());
+}
+
+std::string ScanService::startScan(const json& options) {
+  std::unique_lock lock(mutex_);
+  if (stopping_) throw ServiceError(503, "the daemon is stopping");
+  if (job_)
+    throw ServiceError(409, "scan " + job_->id + " is " + job_->object.value("state", "running"));
+  Request request = validate(options);
+  if (!calibration_info_.empty() && request.phase_asked) {
+    auto it = calibration_info_.find("main");
+    if (it != calibration_info_.end() &&
+        it->second["phase_source"] != toString(*request.phase_asked)) {
+      badOption("phase", "the installed calibration was fitted on the " +
+                             it->second["phase_source"].get<std::string>() + " phase");
+    }
+  }
+  const std::uint64_t need = scanEstimateBytes(options) + options_.free_space_margin_bytes;
+  try {
+    const std::uint64_t free = store_.freeBytes();
+    if (free < need)
+      throw ServiceError(507, "no room on the disk for a scan: " + std::to_string(free) +
+                                  " bytes free in " + store_.dataDir().string() + ", " +
+                                  std::to_string(need) + " needed");
+  } catch (const std::system_error& e) {
+    logWarn(std::string("free space unknown: ") + e.what());
+  }
+  auto job = std::make_unique<Job>();
+  job->id = newScanId();
+  job->request = std::move(request);
+  job->object = {{"id", job->id},
+                 {"state", "queued"},
+                 {"progress", 0.0},
+                 {"created", isoTime(std::chrono::system_clock::now())},
+                 {"finished", nullptr},
+                 {"duration_s", nullptr},
+                 {"options", job->request.given},
+                 {"frames", job->request.frames_total},
+                 {"frames_done", 0},
+                 {"files", json::array()},
+                 {"calibrated", calibration_info_.count("main") > 0}};
+  job_ = std::move(job);
+  events_.publish("scan", job_->object);
+  publishState();
+  logInfo("scan " + job_->id + " queued: " + job_->request.given.dump());
+  cv_.notify_all();
+  return job_->id;
+}
+
+void ScanService::worker() {
+  for (;;) {
+    Job* job = nullptr;
+    {
+      std::unique_lock lock(mutex_);
+      cv_.wait(lock, [&] { return stopping_ || job_; });
+      if (!job_) break;  // stopping, nothing queued
+      job = job_.get();
+      job->object["state"] = "running";
+      job->started = Clock::now();
+      events_.publish("scan", job->object);
+    }
+    runJob(*job);
+    std::lock_guard lock(mutex_);
+    job_.reset();
+    publishState();
+    cv_.notify_all();
+  }
+  std::lock_guard lock(mutex_);
+  worker_done_ = true;
+  cv_.notify_all();
+}
+
+void ScanService::reopenBoard(const std::optional<fs::path>& scene) {
+  std::lock_guard lock(acquisition_mutex_);
+  acquisition_.reset();
+  board_.reset();
+  board_ = std::make_unique<drivers::Board>(drivers::Board::open(options_.board, scene));
+  acquisition_ = std::make_unique<Acquisition>(*board_);
+  board_scene_ = scene;
+}
+
+void ScanService::runJob(Job& job) {
+  const Request& req = job.request;
+  const auto isStopping = [&] {
+    std::lock_guard lock(mutex_);
+    return stopping_;
+  };
+  json result;
+  std::string error;
+  try {
+    store_.beginScan(job.id);
+    const fs::path partial = store_.scansDir() / (".partial-" + job.id);
+    if (isStopping()) throw ScanError("aborted: daemon stopping");
+    if (!board_ || !acquisition_ || req.scene != board_scene_) reopenBoard(req.scene);
+
+    // The calibration as installed now (a later install applies to later scans).
+    std::optional<algo::QuasiCalibration> calib;
+    const auto& main = board_->profile().camera("main").config;
+    {
+      const fs::path file = store_.calibrationPath("main");
+      std::error_code ec;
+      if (fs::exists(file, ec)) {
+        try {
+          calib = readQuasiCalibration(file);
+          calib->requireImageSize({main.width, main.height});
+        } catch (const std::exception& e) {
+          logWarn(std::string("scan without the calibration: ") + e.what());
+          calib.reset();
+        }
+      }
+    }
+    const PhaseChoice choice = calib ? phaseChoiceOf(calib->info().phase_source)
+                                     : req.phase_asked.value_or(req.phase_default);
+
+    const ScanPlan plan = planScan(req.scan, board_->profile().stage);
+    algo::PhaseOptions phase_options;
+    phase_options.bit_depth = main.bit_depth;
+    PhaseSink phase(plan, phase_options);
+    TeeSink sinks;
+    sinks.add(phase);
+    std::unique_ptr<BundleSink> bundle;
+    if (req.save_bundle) {
+      json extra = {{"device", "cylscand " + board_name_},
+                    {"board", board_name_},
+                    {"mode", drivers::toString(req.scan.mode)},
+                    {"exposure_us", main.exposure_us}};
+      if (main.bit_depth > 8) extra["bit_depth"] = main.bit_depth;
+      bundle = std::make_unique<BundleSink>(partial / "bundle", plan, req.scan.cameras, extra);
+      sinks.add(*bundle);
+    }
+    logInfo("scan " + job.id + " running: " + std::to_string(plan.frames()) + " frames, " +
+            std::string(drivers::toString(req.scan.mode)));
+    const auto progress = [&](const ScanProgress& p) {
+      frames_total_.inc();
+      std::lock_guard lock(mutex_);
+      if (stopping_) acquisition_->abort();
+      const double fraction =
+          p.frames_total > 0 ? static_cast<double>(p.frames_done) / p.frames_total : 0.0;
+      job.object["frames_done"] = p.frames_done;
+      job.object["progress"] = fraction;
+      events_.publish("progress", {{"id", job.id},
+                                   {"frames_done", p.frames_done},
+                                   {"frames_total", p.frames_total},
+                                   {"set", std::string(formats::toString(p.set))},
+                                   {"progress", fraction}});
+    };
+    const ScanReport report = acquisition_->run(req.scan, plan, sinks, progress);
+    if (bundle) bundle->commit();
+
+    const algo::PhaseMaps maps = phase.finalize("main");
+    std::vector<std::string> files = {"texture.png", "phase.png"};
+    formats::writePng(partial / "texture.png", textureImage(maps.texture, main.bit_depth));
+    formats::writePng(partial / "phase.png", previewOfMap(absolutePhase(maps, choice)));
+    if (calib) {
+      const cv::Mat xyz = calib->evaluate(absolutePhase(maps, choice));
+      const formats::PointCloud cloud = cloudOfMaps(xyz, maps.texture);
+      formats::writePly(partial / "cloud.ply", cloud);
+      const cv::Mat depth = depthOfMap(xyz);
+      formats::writeFloatTiff(partial / "depth.tiff", depth);
+      formats::writePng(partial / "depth.png", previewOfMap(depth));
+      files.insert(files.begin(), {"cloud.ply", "depth.tiff"});
+      files.push_back("depth.png");
+      result["points"] = cloud.size();
+    }
+    result["files"] = files;
+    result["calibrated"] = calib.has_value();
+    result["phase"] = toString(choice);
+    result["phase_valid_fraction"] = maps.valid_fraction;
+    result["frames_done"] = report.frames;
+    result["retries"] = report.retries;
+    result["homed"] = report.homed;
+    result["realtime"] = report.realtime;
+    result["board_seconds"] = static_cast<double>(report.duration.count()) / 1e9;
+    result["warnings"] = report.warnings;
+    result["step_jitter"] = jitterJson(report.step_jitter);
+    result["trigger_jitter"] = jitterJson(report.trigger_jitter);
+    if (bundle) result["bundle"] = "bundle";
+
+    json object;
+    {
+      std::lock_guard lock(mutex_);
+      for (const auto& [k, v] : result.items())
+        job.object[k] = v;
+      job.object["state"] = "done";
+      job.object["progress"] = 1.0;
+      job.object["finished"] = isoTime(std::chrono::system_clock::now());
+      job.object["duration_s"] = secondsSince(job.started);
+      object = job.object;
+    }
+    store_.commit(job.id, object);
+    scans_total_.inc("done");
+    scan_duration_.observe(object["duration_s"].get<double>());
+    std::lock_guard lock(mutex_);
+    step_jitter_ = report.step_jitter;
+    trigger_jitter_ = report.trigger_jitter;
+    realtime_ = report.realtime;
+    last_error_.reset();
+    events_.publish("scan", object);
+    logInfo("scan " + job.id + " done in " + std::to_string(object["duration_s"].get<double>()) +
+            " s");
+  } catch (const std::exception& e) {
+    error = isStopping() ? "aborted: daemon stopping" : e.what();
+  }
+  if (!error.empty()) {
+    json object;
+    {
+      std::lock_guard lock(mutex_);
+      job.object["state"] = "failed";
+      job.object["error"] = error;
+      job.object["files"] = json::array();
+      job.object["finished"] = isoTime(std::chrono::system_clock::now());
+      job.object["duration_s"] = secondsSince(job.started);
+      object = job.object;
+    }
+    try {
+      store_.commit(job.id, object, /*keep_files=*/false);
+    } catch (const std::exception& e) {
+      logError("cannot record the failed scan " + job.id + ": " + e.what());
+      store_.discard(job.id);
+    }
+    scans_total_.inc("failed");
+    std::lock_guard lock(mutex_);
+    last_error_ = error;
+    events_.publish("error", {{"id", job.id}, {"error", error}});
+    events_.publish("scan", object);
+    logError("scan " + job.id + " failed: " + error);
+  }
+  try {
+    store_.applyRetention(options_.retention, job.id);
+  } catch (const std::exception& e) {
+    logError(std::string("retention: ") + e.what());
+  }
+}
+
+json ScanService::status() const {
+  std::lock_guard lock(mutex_);
+  json s = stateJson();
+  json out = {{"state", s["state"]},
+              {"board", board_name_},
+              {"version", options_.version},
+              {"current_scan", s["scan"]},
+              {"last_error", last_error_ ? json(*last_error_) : json(nullptr)},
+              {"calibration", {{"main", calibration_info_.count("main") > 0}}},
+              {"scans", store_.count()},
+              {"uptime_s", secondsSince(started_)},
+              {"realtime", realtime_}};
+  try {
+    out["disk_free_bytes"] = store_.freeBytes();
+  } catch (const std::exception&) {
+    out["disk_free_bytes"] = nullptr;
+  }
+  return out;
+}
+
+json ScanService::listScans() const {
+  std::lock_guard lock(mutex_);
+  json out = json::array();
+  if (job_) out.push_back(job_->object);
+  for (auto& scan : store_.list())
+    if (!job_ || scan["id"] != job_->id) out.push_back(std::move(scan));
+  return out;
+}
+
+std::optional<json> ScanService::scan(std::string_view id) const {
+  if (!isValidScanId(id)) return std::nullopt;
+  {
+    std::lock_guard lock(mutex_);
+    if (job_ && job_->id == id) return job_->object;
+  }
+  return store_.get(id);
+}
+
+std::optional<fs::path> ScanService::scanFile(std::string_view id, std::string_view name) const {
+  if (!isValidScanId(id)) return std::nullopt;
+  {
+    std::lock_guard lock(mutex_);
+    if (job_ && job_->id == id) return std::nullopt;  // not done yet
+  }
+  return store_.file(id, name);
+}
+
+bool ScanService::deleteScan(std::string_view id) {
+  if (!isValidScanId(id)) return false;
+  {
+    std::lock_guard lock(mutex_);
+    if (job_ && job_->id == id)
+      throw ServiceError(409, "scan " + job_->id + " is " + job_->object.value("state", "running"));
+  }
+  const bool removed = store_.remove(id);
+  if (removed) logInfo("scan " + std::string(id) + " deleted");
+  return removed;
+}
+
+json ScanService::installCalibration(std::string_view camera, std::string_view bytes) {
+  const std::string name(camera);
+  const auto known = std::find_if(profile_.cameras.begin(), profile_.cameras.end(),
+                                  [&](const drivers::CameraProfile& c) { return c.name == name; });
+  if (known == profile_.cameras.end())
+    throw ServiceError(400, "camera: the board has no camera '" + name + "'");
+  if (bytes.size() > options_.max_calibration_bytes)
+    throw ServiceError(413, "calibration: " + std::to_string(bytes.size()) +
+                                " bytes, more than max_calibration_bytes " +
+                                std::to_string(options_.max_calibration_bytes));
+  const auto span = std::as_bytes(std::span<const char>(bytes.data(), bytes.size()));
+  std::optional<algo::QuasiCalibration> calib;
+  try {
+    calib = algo::QuasiCalibration::deserialize(span);
+  } catch (const std::exception& e) {
+    throw ServiceError(400, std::string("calibration: ") + e.what());
+  }
+  const auto& c = profile_.camera(name).config;
+  try {
+    calib->requireImageSize({c.width, c.height});
+  } catch (const std::invalid_argument& e) {
+    throw ServiceError(422,
+                       std::string("calibration: ") + e.what() + " (board " + board_name_ + ")");
+  }
+  const json info = {{"installed", true},
+                     {"bytes", bytes.size()},
+                     {"width", calib->size().width},
+                     {"height", calib->size().height},
+                     {"phase_source", toString(phaseChoiceOf(calib->info().phase_source))}};
+  {
+    std::lock_guard install(calibration_mutex_);
+    store_.installCalibration(name, span);
+    std::lock_guard lock(mutex_);
+    calibration_info_[name] = info;
+  }
+  logInfo("calibration of camera " + name + " installed (" + std::to_string(bytes.size()) +
+          " bytes)");
+  return info;
+}
+
+json ScanService::calibrationInfo(std::string_view camera) const {
+  std::lock_guard lock(mutex_);
+  auto it = calibration_info_.find(camera);
+  if (it == calibration_info_.end()) return {{"installed", false}};
+  return it->second;
+}
+
+std::optional<fs::path> ScanService::calibrationFile(std::string_view camera) const {
+  {
+    std::lock_guard lock(mutex_);
+    if (calibration_info_.find(camera) == calibration_info_.end()) return std::nullopt;
+  }
+  const fs::path file = store_.calibrationPath(camera);
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) return std::nullopt;
+  return file;
+}
+
+std::unique_ptr<EventStream> ScanService::subscribe() {
+  std::lock_guard lock(mutex_);
+  return events_.subscribe(HeadEvent{0, "state", stateJson()});
+}
+
+std::string ScanService::metricsText() const {
+  MetricsWriter w;
+  w.counter("cylscan_scans_total", "Scans finished, by result.", "result", scans_total_.values());
+  w.histogram("cylscan_scan_duration_seconds", "Wall-clock time of a finished scan.",
+              scan_duration_.snapshot());
+  w.counter("cylscan_frames_total", "Frames captured by all scans.", frames_total_.value());
+  std::optional<drivers::JitterStats::Snapshot> step, trigger;
+  {
+    std::lock_guard lock(mutex_);
+    step = step_jitter_;
+    trigger = trigger_jitter_;
+  }
+  const auto& bounds = defaultLatenessBoundsSeconds();
+  w.histogram("cylscan_step_lateness_seconds",
+              "Lateness of the step edges of the last scan's motion thread.",
+              foldJitter(step.value_or(drivers::JitterStats::Snapshot{}), bounds));
+  w.histogram("cylscan_trigger_lateness_seconds", "Lateness of the last scan's camera triggers.",
+              foldJitter(trigger.value_or(drivers::JitterStats::Snapshot{}), bounds));
+  w.gauge("cylscan_scans_stored", "Scans in the data directory.",
+          static_cast<double>(store_.count()));
+  return w.text();
+}
+
+}  // namespace cylscan::firmware

@@ -1,0 +1,125 @@
+// The head as the daemon runs it (HeadService on a drivers::Board): one
+// worker thread runs the scans one at a time through firmware::Acquisition,
+// streams the phase, reconstructs with the installed calibration and commits
+// each scan to the ScanStore; status, lists and events are snapshots taken
+// under a short mutex, so no HTTP thread ever waits for the head.
+//
+// States: idle → scanning → idle, or error (status "last_error") after a
+// failed scan until the next successful one. A scan is queued from startScan
+// until the worker takes it, then running, then done or failed.
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "drivers/board.hpp"
+#include "firmware/acquisition.hpp"
+#include "firmware/daemon/daemon_config.hpp"
+#include "firmware/daemon/event_hub.hpp"
+#include "firmware/daemon/head_service.hpp"
+#include "firmware/daemon/metrics.hpp"
+#include "firmware/daemon/scan_store.hpp"
+
+namespace cylscan::firmware {
+
+struct ScanServiceOptions {
+  std::filesystem::path board;     // profile folder or board.toml
+  std::filesystem::path data_dir;  // the ScanStore's
+  RetentionConfig retention;
+  ScanDefaults scan;  // defaults of POST options (absent: the profile's)
+  std::uint64_t max_calibration_bytes = 134217728;
+  std::uint64_t free_space_margin_bytes = 16u << 20;  // kept free beyond a scan's estimate
+  std::string version = "0.0.0";
+};
+ScanServiceOptions scanServiceOptions(const DaemonConfig& config, std::string version);
+
+class ScanService final : public HeadService {
+ public:
+  // Opens the board (sim::ConfigError / GpioError / CameraError as
+  // drivers::Board::open), the acquisition and the data directory, and
+  // starts the worker.
+  explicit ScanService(ScanServiceOptions options);
+  ~ScanService() override;  // stop()
+  ScanService(const ScanService&) = delete;
+  ScanService& operator=(const ScanService&) = delete;
+
+  // Aborts the running scan (recorded failed, "aborted: daemon stopping"; the
+  // stage disabled, the light off), fails a queued one, joins the worker and
+  // closes the event streams. Later startScan calls get 503. Idempotent.
+  void stop();
+
+  const std::string& boardName() const { return board_name_; }
+  const ScanStore& store() const { return store_; }
+  // Waits until no scan is queued or running (tests, shutdown); false on timeout.
+  bool waitUntilIdle(std::chrono::milliseconds timeout) const;
+  // The bytes of free disk a scan of `options` asks for (outputs, the bundle
+  // when saved) before the margin; ServiceError 400 for bad options.
+  std::uint64_t scanEstimateBytes(const nlohmann::json& options) const;
+
+  nlohmann::json status() const override;
+  std::string startScan(const nlohmann::json& options) override;
+  nlohmann::json listScans() const override;
+  std::optional<nlohmann::json> scan(std::string_view id) const override;
+  std::optional<std::filesystem::path> scanFile(std::string_view id,
+                                                std::string_view name) const override;
+  bool deleteScan(std::string_view id) override;
+  nlohmann::json installCalibration(std::string_view camera, std::string_view bytes) override;
+  nlohmann::json calibrationInfo(std::string_view camera) const override;
+  std::optional<std::filesystem::path> calibrationFile(std::string_view camera) const override;
+  std::unique_ptr<EventStream> subscribe() override;
+  std::string metricsText() const override;
+
+ private:
+  struct Request;  // a validated POST
+  struct Job;      // the queued or running scan
+  struct Calibration;
+
+  Request validate(const nlohmann::json& options) const;
+  void worker();
+  void runJob(Job& job);
+  void reopenBoard(const std::optional<std::filesystem::path>& scene);
+  void loadCalibrationInfo();
+  void publishState();               // mutex_ held
+  nlohmann::json stateJson() const;  // mutex_ held
+  std::string newScanId();
+
+  ScanServiceOptions options_;
+  drivers::BoardProfile profile_;  // as opened (the default scene)
+  std::string board_name_;
+  std::filesystem::path scenes_dir_;
+  ScanStore store_;
+  EventHub events_;
+  const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+
+  // The worker's own: the board and its acquisition (swapped for another scene).
+  std::unique_ptr<drivers::Board> board_;
+  std::optional<std::filesystem::path> board_scene_;
+  std::mutex acquisition_mutex_;  // guards acquisition_ against abort() from stop()
+  std::mutex calibration_mutex_;  // one calibration install at a time
+  std::unique_ptr<Acquisition> acquisition_;
+
+  mutable std::mutex mutex_;
+  mutable std::condition_variable cv_;
+  std::unique_ptr<Job> job_;  // queued or running
+  bool stopping_ = false;
+  bool worker_done_ = false;
+  std::optional<std::string> last_error_;
+  bool realtime_ = false;
+  std::string last_id_;
+  std::map<std::string, nlohmann::json, std::less<>> calibration_info_;  // by camera, when installed
+
+  Counter frames_total_;
+  LabelledCounter scans_total_;
+  Histogram scan_duration_;
+  std::optional<drivers::JitterStats::Snapshot> step_jitter_, trigger_jitter_;  // last scan
+
+  std::thread worker_;
+};
+
+}  // namespace cylscan::firmware

@@ -1,0 +1,281 @@
+#include "firmware/daemon/scan_store.hpp"
+
+#include <fcntl.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <system_error>
+
+#include "firmware/daemon/head_service.hpp"
+#include "firmware/daemon/log.hpp"
+#include "formats/atomic_file.hpp"
+#include "formats/file_reading.hpp"
+
+namespace cylscan::firmware {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr std::uintmax_t kMaxScanJsonBytes = 1 << 20;
+constexpr std::string_view kPartialPrefix = ".partial-";
+constexpr std::string_view kBrokenPrefix = ".broken-";
+
+[[noreturn]] void throwErrno(const std::string& what, const fs::path& path) {
+  throw std::system_error(errno, std::generic_category(), what + " " + path.string());
+}
+
+void syncPath(const fs::path& path, bool directory) {
+  const int fd = ::open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
+  if (fd < 0) throwErrno("cannot open", path);
+  if (::fsync(fd) != 0) {
+    const int err = errno;
+    ::close(fd);
+    errno = err;
+    throwErrno("cannot fsync", path);
+  }
+  ::close(fd);
+}
+
+bool isCameraName(std::string_view name) {
+  if (name.empty() || name.size() > 32) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+  });
+}
+
+bool isScanFileName(std::string_view name) {
+  return std::find(std::begin(kScanFileNames), std::end(kScanFileNames), name) !=
+         std::end(kScanFileNames);
+}
+
+// Why a scan dir's record is unusable, or empty when it is fine.
+std::string checkRecord(const json& scan, const std::string& id) {
+  if (!scan.is_object()) return "scan.json is not a JSON object";
+  if (!scan.contains("id") || scan["id"] != id) return "scan.json's id is not the directory's";
+  if (!scan.contains("state") || !scan["state"].is_string()) return "scan.json has no state";
+  const std::string state = scan["state"];
+  if (state != "done" && state != "failed") return "scan.json's state is '" + state + "'";
+  if (!scan.contains("created") || !scan["created"].is_string()) return "scan.json has no created";
+  return {};
+}
+
+}  // namespace
+
+std::uint64_t directoryBytes(const fs::path& dir) {
+  std::error_code ec;
+  std::uint64_t total = 0;
+  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code e2;
+    if (it->is_regular_file(e2)) total += it->file_size(e2);
+  }
+  return total;
+}
+
+void syncDirectory(const fs::path& dir) {
+  syncPath(dir, true);
+}
+
+void syncTree(const fs::path& dir) {
+  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+    if (entry.is_symlink()) continue;
+    if (entry.is_regular_file())
+      syncPath(entry.path(), false);
+    else if (entry.is_directory())
+      syncPath(entry.path(), true);
+  }
+  syncPath(dir, true);
+}
+
+ScanStore::ScanStore(fs::path data_dir) : dir_(std::move(data_dir)) {
+  fs::create_directories(dir_ / "scans");
+  fs::create_directories(dir_ / "calibration");
+  load();
+}
+
+void ScanStore::load() {
+  for (const auto& entry : fs::directory_iterator(scansDir())) {
+    const std::string name = entry.path().filename().string();
+    if (name.starts_with(kPartialPrefix)) {
+      logWarn("removing the unfinished scan " + entry.path().string() + " (left by a crash)");
+      std::error_code ec;
+      fs::remove_all(entry.path(), ec);
+      if (ec) logError("cannot remove " + entry.path().string() + ": " + ec.message());
+      continue;
+    }
+    if (name.starts_with(kBrokenPrefix)) continue;
+    if (!entry.is_directory() || !isValidScanId(name)) {
+      logWarn("ignoring " + entry.path().string() + ": not a scan directory");
+      continue;
+    }
+    std::string fault;
+    json scan;
+    try {
+      scan = formats::readJsonFile(entry.path() / "scan.json", kMaxScanJsonBytes);
+      fault = checkRecord(scan, name);
+    } catch (const std::exception& e) {
+      fault = e.what();
+    }
+    if (!fault.empty()) {
+      const fs::path aside = scansDir() / (std::string(kBrokenPrefix) + name);
+      std::error_code ec;
+      fs::remove_all(aside, ec);
+      fs::rename(entry.path(), aside, ec);
+      logWarn("scan " + name + " skipped: " + fault + "; moved to " + aside.string() +
+              (ec ? " failed: " + ec.message() : ""));
+      continue;
+    }
+    scans_[name] = Entry{std::move(scan), directoryBytes(entry.path())};
+  }
+}
+
+fs::path ScanStore::beginScan(const std::string& id) {
+  if (!isValidScanId(id)) throw std::invalid_argument("not a scan id: '" + id + "'");
+  const fs::path partial = scansDir() / (std::string(kPartialPrefix) + id);
+  fs::remove_all(partial);
+  fs::create_directory(partial);
+  return partial;
+}
+
+void ScanStore::discard(const std::string& id) {
+  if (!isValidScanId(id)) return;
+  std::error_code ec;
+  fs::remove_all(scansDir() / (std::string(kPartialPrefix) + id), ec);
+}
+
+void ScanStore::commit(const std::string& id, const json& scan, bool keep_files) {
+  if (!isValidScanId(id)) throw std::invalid_argument("not a scan id: '" + id + "'");
+  const fs::path partial = scansDir() / (std::string(kPartialPrefix) + id);
+  const fs::path final_dir = scansDir() / id;
+  if (!fs::is_directory(partial)) fs::create_directory(partial);
+  if (!keep_files) {
+    for (const auto& entry : fs::directory_iterator(partial))
+      fs::remove_all(entry.path());
+  }
+  formats::writeFileAtomically(partial / "scan.json", scan.dump(2) + "\n");
+  syncTree(partial);
+  if (fs::exists(final_dir)) throw std::runtime_error("scan " + id + " exists already");
+  fs::rename(partial, final_dir);
+  syncDirectory(scansDir());
+  const std::uint64_t bytes = directoryBytes(final_dir);
+  const std::lock_guard lock(mutex_);
+  scans_[id] = Entry{scan, bytes};
+}
+
+std::vector<std::string> ScanStore::orderLocked() const {
+  std::vector<std::pair<std::string, std::string>> keys;
+  for (const auto& [id, e] : scans_)
+    keys.emplace_back(e.scan.value("created", std::string()), id);
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::string> ids;
+  for (auto& k : keys)
+    ids.push_back(std::move(k.second));
+  return ids;
+}
+
+std::vector<json> ScanStore::list() const {
+  const std::lock_guard lock(mutex_);
+  std::vector<json> out;
+  const auto ids = orderLocked();
+  for (auto it = ids.rbegin(); it != ids.rend(); ++it)
+    out.push_back(scans_.find(*it)->second.scan);
+  return out;
+}
+
+std::optional<json> ScanStore::get(std::string_view id) const {
+  if (!isValidScanId(id)) return std::nullopt;
+  const std::lock_guard lock(mutex_);
+  auto it = scans_.find(id);
+  if (it == scans_.end()) return std::nullopt;
+  return it->second.scan;
+}
+
+std::optional<fs::path> ScanStore::file(std::string_view id, std::string_view name) const {
+  if (!isValidScanId(id) || !isScanFileName(name)) return std::nullopt;
+  {
+    const std::lock_guard lock(mutex_);
+    if (scans_.find(id) == scans_.end()) return std::nullopt;
+  }
+  const fs::path path = scansDir() / std::string(id) / std::string(name);
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return std::nullopt;
+  return path;
+}
+
+bool ScanStore::remove(std::string_view id) {
+  if (!isValidScanId(id)) return false;
+  const std::lock_guard lock(mutex_);
+  auto it = scans_.find(id);
+  if (it == scans_.end()) return false;
+  // Renamed out of the index's names first, so a crash mid-way leaves a
+  // partial dir (cleaned at the next start), never a half-deleted scan.
+  const fs::path dir = scansDir() / std::string(id);
+  const fs::path doomed = scansDir() / (std::string(kPartialPrefix) + std::string(id));
+  std::error_code ec;
+  fs::remove_all(doomed, ec);
+  fs::rename(dir, doomed);
+  syncDirectory(scansDir());
+  scans_.erase(it);
+  fs::remove_all(doomed, ec);
+  if (ec) logWarn("cannot remove " + doomed.string() + ": " + ec.message());
+  return true;
+}
+
+std::size_t ScanStore::count() const {
+  const std::lock_guard lock(mutex_);
+  return scans_.size();
+}
+
+std::uint64_t ScanStore::totalBytes() const {
+  const std::lock_guard lock(mutex_);
+  std::uint64_t total = 0;
+  for (const auto& [id, e] : scans_)
+    total += e.bytes;
+  return total;
+}
+
+std::vector<std::string> ScanStore::applyRetention(const RetentionConfig& retention,
+                                                   const std::string& keep) {
+  std::vector<std::string> doomed;
+  {
+    const std::lock_guard lock(mutex_);
+    std::uint64_t count = scans_.size();
+    std::uint64_t bytes = 0;
+    for (const auto& [id, e] : scans_)
+      bytes += e.bytes;
+    for (const std::string& id : orderLocked()) {
+      const bool over = (retention.max_scans > 0 && count > retention.max_scans) ||
+                        (retention.max_bytes > 0 && bytes > retention.max_bytes);
+      if (!over) break;
+      if (id == keep) continue;
+      doomed.push_back(id);
+      --count;
+      bytes -= scans_.find(id)->second.bytes;
+    }
+  }
+  for (const auto& id : doomed) {
+    remove(id);
+    logInfo("retention: removed scan " + id);
+  }
+  return doomed;
+}
+
+std::uint64_t ScanStore::freeBytes() const {
+  struct statvfs s {};
+  if (::statvfs(dir_.c_str(), &s) != 0) throwErrno("cannot statvfs", dir_);
+  return static_cast<std::uint64_t>(s.f_bavail) * static_cast<std::uint64_t>(s.f_frsize);
+}
+
+fs::path ScanStore::calibrationPath(std::string_view camera) const {
+  if (!isCameraName(camera))
+    throw std::invalid_argument("not a camera name: '" + std::string(camera) + "'");
+  return dir_ / "calibration" / (std::string(camera) + ".qcal");
+}
+
+void ScanStore::installCalibration(std::string_view camera, std::span<const std::byte> bytes) {
+  formats::writeFileAtomically(calibrationPath(camera), bytes);
+}
+
+}  // namespace cylscan::firmware

@@ -1,0 +1,92 @@
+// The daemon's data directory (layout in docs/daemon.md):
+//   scans/<id>/scan.json + its files   one finished (done or failed) scan
+//   scans/.partial-<id>/               a scan being written (never listed)
+//   scans/.broken-<id>/                a scan dir whose scan.json was unusable
+//   calibration/<camera>.qcal          the installed quasi-calibrations
+// A scan is written in its partial dir, every file and the dir fsynced, then
+// renamed to <id> and the parent fsynced: a crash leaves either no scan or a
+// whole one. Thread-safe (one mutex around the index; no call waits for more
+// than its own file system work).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "firmware/daemon/daemon_config.hpp"
+
+namespace cylscan::firmware {
+
+class ScanStore {
+ public:
+  // Creates the directories when missing, removes leftover partial dirs and
+  // moves scan dirs without a valid scan.json aside (both logged), and
+  // indexes the scans. std::system_error naming the path when the data
+  // directory cannot be made or read.
+  explicit ScanStore(std::filesystem::path data_dir);
+
+  const std::filesystem::path& dataDir() const { return dir_; }
+  std::filesystem::path scansDir() const { return dir_ / "scans"; }
+
+  // A fresh, empty partial dir for scan `id` (an isValidScanId id).
+  std::filesystem::path beginScan(const std::string& id);
+  // Writes `scan` (the scan object; its "files" are the ones present) as
+  // scan.json into the partial dir, fsyncs everything and renames it to
+  // scans/<id>. With keep_files false the partial's other files are removed
+  // first (a failed scan keeps only its record).
+  void commit(const std::string& id, const nlohmann::json& scan, bool keep_files = true);
+  // Removes a partial dir (nothing happens when there is none).
+  void discard(const std::string& id);
+
+  std::vector<nlohmann::json> list() const;  // newest first
+  std::optional<nlohmann::json> get(std::string_view id) const;
+  // `name` one of kScanFileNames; nullopt unless the scan and the file exist.
+  std::optional<std::filesystem::path> file(std::string_view id, std::string_view name) const;
+  bool remove(std::string_view id);
+  std::size_t count() const;
+  std::uint64_t totalBytes() const;
+
+  // Removes the oldest scans while there are more than max_scans or they take
+  // more than max_bytes (0 = no limit), never `keep`. The ids removed.
+  std::vector<std::string> applyRetention(const RetentionConfig& retention,
+                                          const std::string& keep);
+
+  // Free bytes for an unprivileged writer of the data directory (statvfs).
+  std::uint64_t freeBytes() const;
+
+  // calibration/<camera>.qcal, whether or not it exists.
+  std::filesystem::path calibrationPath(std::string_view camera) const;
+  // Written atomically (temp, fsync, rename, fsync dir): the old one stays
+  // whole until the new one is.
+  void installCalibration(std::string_view camera, std::span<const std::byte> bytes);
+
+ private:
+  struct Entry {
+    nlohmann::json scan;
+    std::uint64_t bytes = 0;
+  };
+  // Oldest first: by "created", then id.
+  std::vector<std::string> orderLocked() const;
+  void load();
+
+  std::filesystem::path dir_;
+  mutable std::mutex mutex_;
+  std::map<std::string, Entry, std::less<>> scans_;
+};
+
+// The bytes of the regular files under `dir` (0 when missing).
+std::uint64_t directoryBytes(const std::filesystem::path& dir);
+// fsync of every regular file and directory under `dir`, and of `dir`.
+void syncTree(const std::filesystem::path& dir);
+// fsync of one directory (std::system_error naming it).
+void syncDirectory(const std::filesystem::path& dir);
+
+}  // namespace cylscan::firmware
