@@ -1,0 +1,763 @@
+#include "firmware/http/http_api.hpp"
+
+#include <arpa/inet.h>
+#include <microhttpd.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <charconv>
+#include <condition_variable>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "firmware/http/auth.hpp"
+#include "firmware/http/files.hpp"
+#include "firmware/http/http_metrics.hpp"
+#include "firmware/http/router.hpp"
+
+namespace cylscan::firmware {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+constexpr std::chrono::milliseconds kPumpTick{50};  // how often event streams are looked at
+constexpr std::size_t kSsePendingLimit = 1u << 20;  // unsent bytes per stream
+constexpr std::size_t kSseBlockSize = 4096;
+
+std::string dumpJson(const json& value) {
+  return value.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+std::string errorBody(std::string_view message) {
+  return dumpJson(json{{"error", std::string(message)}});
+}
+
+// What a handler answers: a body in memory or an open file.
+struct Reply {
+  int status = 200;
+  std::string body;
+  std::string content_type = "application/json";
+  std::string cache_control = "no-store";
+  std::vector<std::pair<std::string, std::string>> headers;
+  std::optional<http::OpenFile> file;
+};
+
+Reply jsonReply(int status, const json& value) {
+  Reply r;
+  r.status = status;
+  r.body = dumpJson(value);
+  return r;
+}
+
+Reply errorReply(int status, std::string_view message) {
+  Reply r;
+  r.status = status;
+  r.body = errorBody(message);
+  return r;
+}
+
+// One request's state across libmicrohttpd's calls of the access handler.
+struct Request {
+  Clock::time_point start = Clock::now();
+  http::Route route;
+  std::string method;
+  std::size_t limit = 0;  // body bytes allowed
+  std::string body;
+  bool answered = false;   // a response is queued
+  bool streaming = false;  // an event stream: counted when it starts
+  int status = 0;
+};
+
+struct SseClient;
+
+}  // namespace
+
+struct ApiServer;
+
+struct ApiServer {
+  ApiServer(HeadService& s, HttpOptions o) : service(s), options(std::move(o)) {}
+
+  HeadService& service;
+  HttpOptions options;
+  http::HttpMetrics metrics;
+  MHD_Daemon* daemon = nullptr;
+  std::uint16_t bound_port = 0;
+
+  // Event streams: registered while their response lives.
+  std::mutex sse_mutex;
+  std::condition_variable sse_cv;
+  std::map<SseClient*, std::shared_ptr<SseClient>> sse_clients;
+  bool stopping = false;
+  std::thread pump;
+
+  void log(std::string_view line) const;
+  void start();
+  void stop();
+
+  MHD_Result access(MHD_Connection* c, const char* url, const char* method, const char* upload_data,
+                    std::size_t* upload_size, void** con_cls);
+  MHD_Result begin(MHD_Connection* c, const char* url, Request& r);
+  MHD_Result answer(MHD_Connection* c, Request& r, Reply reply);
+  std::optional<Reply> checkAuth(MHD_Connection* c) const;
+  Reply dispatch(MHD_Connection* c, Request& r);
+  Reply handle(MHD_Connection* c, Request& r);
+  Reply staticFile(const Request& r) const;
+  MHD_Result startEvents(MHD_Connection* c, Request& r);
+  void completed(Request& r);
+
+  void pumpLoop();
+  void dropHungUp(const std::vector<std::shared_ptr<SseClient>>& clients);
+  void sseFreed(SseClient* client);
+};
+
+namespace {
+
+struct SseClient {
+  ApiServer* owner = nullptr;
+  MHD_Connection* connection = nullptr;
+  int fd = -1;  // the connection's socket, watched for a hang-up while suspended
+  std::unique_ptr<EventStream> stream;
+
+  std::mutex mutex;
+  std::string pending;  // formatted, not yet handed to libmicrohttpd
+  bool suspended = false;
+  bool ended = false;  // send what is pending, then end the stream
+  Clock::time_point last_output = Clock::now();
+  std::uint64_t dropped_seen = 0;
+  std::atomic<bool> gone{false};  // the response is freed
+
+  void append(std::string_view text, Clock::time_point now) {
+    pending += text;
+    last_output = now;
+  }
+};
+
+std::string formatEvent(const HeadEvent& e) {
+  std::string out = "id: " + std::to_string(e.seq) + "\n";
+  out += "event: " + e.name + "\n";
+  out += "data: " + dumpJson(e.data) + "\n\n";
+  return out;
+}
+
+// libmicrohttpd asks for more of an event stream: what is pending, or the
+// end, or nothing yet: then the connection is suspended (it costs no thread
+// and is not polled) until the pump has something and resumes it.
+ssize_t sseRead(void* cls, std::uint64_t /*pos*/, char* buf, std::size_t max) {
+  auto* client = static_cast<SseClient*>(cls);
+  std::lock_guard lock(client->mutex);
+  if (!client->pending.empty()) {
+    const std::size_t n = std::min(max, client->pending.size());
+    std::memcpy(buf, client->pending.data(), n);
+    client->pending.erase(0, n);
+    return static_cast<ssize_t>(n);
+  }
+  if (client->ended) return MHD_CONTENT_READER_END_OF_STREAM;
+  client->suspended = true;
+  MHD_suspend_connection(client->connection);
+  return 0;
+}
+
+void sseFree(void* cls) {
+  auto* client = static_cast<SseClient*>(cls);
+  client->gone = true;
+  client->owner->sseFreed(client);
+}
+
+MHD_Result accessTrampoline(void* cls, MHD_Connection* c, const char* url, const char* method,
+                            const char* /*version*/, const char* upload_data,
+                            std::size_t* upload_size, void** con_cls) {
+  return static_cast<ApiServer*>(cls)->access(c, url, method, upload_data, upload_size, con_cls);
+}
+
+void completedTrampoline(void* cls, MHD_Connection* /*c*/, void** con_cls,
+                         MHD_RequestTerminationCode /*toe*/) {
+  if (*con_cls == nullptr) return;
+  std::unique_ptr<Request> request(static_cast<Request*>(*con_cls));
+  *con_cls = nullptr;
+  static_cast<ApiServer*>(cls)->completed(*request);
+}
+
+void mhdLogger(void* cls, const char* fmt, va_list ap) {
+  char line[512];
+  std::vsnprintf(line, sizeof line, fmt, ap);
+  std::string_view text(line);
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r'))
+    text.remove_suffix(1);
+  static_cast<const ApiServer*>(cls)->log(text);
+}
+
+int hexValue(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+// Percent-decoding of paths and query arguments that leaves encoded
+// separators, backslashes and control characters (%2F, %5C, %00, …) as they
+// are: they never become a '/' or a NUL, and the router refuses a path with
+// a '%' left in it.
+std::size_t unescape(void* /*cls*/, MHD_Connection* /*c*/, char* s) {
+  char* out = s;
+  for (const char* in = s; *in != '\0';) {
+    if (in[0] == '%' && in[1] != '\0' && in[2] != '\0') {
+      const int hi = hexValue(in[1]);
+      const int lo = hexValue(in[2]);
+      if (hi >= 0 && lo >= 0) {
+        const int v = hi * 16 + lo;
+        if (v >= 0x20 && v != 0x7f && v != '/' && v != '\\') {
+          *out++ = static_cast<char>(v);
+          in += 3;
+          continue;
+        }
+      }
+    }
+    *out++ = *in++;
+  }
+  *out = '\0';
+  return static_cast<std::size_t>(out - s);
+}
+
+MHD_Result sumValue(void* cls, MHD_ValueKind /*kind*/, const char* key, const char* value) {
+  auto* total = static_cast<std::size_t*>(cls);
+  *total += std::strlen(key) + (value != nullptr ? std::strlen(value) : 0) + 4;
+  return MHD_YES;
+}
+
+const char* headerValue(MHD_Connection* c, const char* name) {
+  return MHD_lookup_connection_value(c, MHD_HEADER_KIND, name);
+}
+
+}  // namespace
+
+void ApiServer::log(std::string_view line) const {
+  if (options.log) {
+    options.log(line);
+  } else {
+    std::cerr << "cylscand: http: " << line << '\n';
+  }
+}
+
+void ApiServer::start() {
+  sockaddr_storage storage{};
+  unsigned flags = MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG;
+  if (options.address.find(':') != std::string::npos) {
+    sockaddr_in6 v6{};
+    v6.sin6_family = AF_INET6;
+    v6.sin6_port = htons(options.port);
+    if (inet_pton(AF_INET6, options.address.c_str(), &v6.sin6_addr) != 1) {
+      throw std::runtime_error("http: '" + options.address + "' is not an IPv6 address");
+    }
+    std::memcpy(&storage, &v6, sizeof v6);
+    flags |= MHD_USE_IPv6;
+  } else {
+    sockaddr_in v4{};
+    v4.sin_family = AF_INET;
+    v4.sin_port = htons(options.port);
+    if (inet_pton(AF_INET, options.address.c_str(), &v4.sin_addr) != 1) {
+      throw std::runtime_error("http: '" + options.address + "' is not an IPv4 address");
+    }
+    std::memcpy(&storage, &v4, sizeof v4);
+  }
+  // The pool must hold the largest request head we answer ourselves (431
+  // past max_header_bytes) plus the response's headers and a read buffer.
+  const std::size_t memory =
+      std::max<std::size_t>(32u << 10, 2 * options.max_header_bytes + (16u << 10));
+  std::vector<MHD_OptionItem> items;
+  items.push_back({MHD_OPTION_SOCK_ADDR, 0, &storage});
+  items.push_back({MHD_OPTION_CONNECTION_LIMIT, options.max_connections, nullptr});
+  if (options.max_connections_per_ip > 0) {
+    items.push_back({MHD_OPTION_PER_IP_CONNECTION_LIMIT, options.max_connections_per_ip, nullptr});
+  }
+  items.push_back({MHD_OPTION_CONNECTION_TIMEOUT,
+                   static_cast<intptr_t>(options.connection_timeout.count()), nullptr});
+  items.push_back({MHD_OPTION_CONNECTION_MEMORY_LIMIT, static_cast<intptr_t>(memory), nullptr});
+  if (options.worker_threads > 1) {
+    items.push_back({MHD_OPTION_THREAD_POOL_SIZE, options.worker_threads, nullptr});
+  }
+  items.push_back({MHD_OPTION_END, 0, nullptr});
+
+  // The logger first: libmicrohttpd logs the options after it its own way.
+  daemon = MHD_start_daemon(flags, options.port, nullptr, nullptr, &accessTrampoline, this,
+                            MHD_OPTION_EXTERNAL_LOGGER, &mhdLogger, this, MHD_OPTION_ARRAY,
+                            items.data(), MHD_OPTION_NOTIFY_COMPLETED, &completedTrampoline, this,
+                            MHD_OPTION_UNESCAPE_CALLBACK, &unescape, this, MHD_OPTION_END);
+  if (daemon == nullptr) {
+    throw std::runtime_error("http: cannot listen on " + options.address + " port " +
+                             std::to_string(options.port) + ": " + std::strerror(errno));
+  }
+  const MHD_DaemonInfo* info = MHD_get_daemon_info(daemon, MHD_DAEMON_INFO_BIND_PORT);
+  bound_port = info != nullptr ? info->port : options.port;
+  pump = std::thread([this] { pumpLoop(); });
+}
+
+void ApiServer::stop() {
+  std::vector<std::shared_ptr<SseClient>> clients;
+  {
+    std::lock_guard lock(sse_mutex);
+    stopping = true;
+    for (const auto& [key, client] : sse_clients)
+      clients.push_back(client);
+  }
+  sse_cv.notify_all();
+  if (pump.joinable()) pump.join();
+  // End every stream: a suspended one is resumed and its reader answers the
+  // end (libmicrohttpd must not be stopped with suspended connections).
+  for (const auto& client : clients) {
+    std::lock_guard lock(client->mutex);
+    client->ended = true;
+    if (client->suspended && !client->gone) {
+      client->suspended = false;
+      MHD_resume_connection(client->connection);
+    }
+  }
+  clients.clear();
+  {
+    // Bounded: a client that reads nothing must not hold the shutdown.
+    std::unique_lock lock(sse_mutex);
+    sse_cv.wait_for(lock, std::chrono::seconds(2), [this] { return sse_clients.empty(); });
+  }
+  if (daemon != nullptr) MHD_stop_daemon(daemon);
+  daemon = nullptr;
+  std::lock_guard lock(sse_mutex);
+  sse_clients.clear();
+}
+
+MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* method,
+                             const char* upload_data, std::size_t* upload_size, void** con_cls) {
+  if (*con_cls == nullptr) {
+    auto request = std::make_unique<Request>();
+    request->method = method;
+    Request& r = *request;
+    *con_cls = request.release();  // owned again in completedTrampoline
+    return begin(c, url, r);
+  }
+  Request& r = *static_cast<Request*>(*con_cls);
+  if (*upload_size != 0) {
+    if (r.answered) {
+      *upload_size = 0;
+      return MHD_YES;
+    }
+    if (r.body.size() + *upload_size > r.limit) {
+      // Cannot happen with the Content-Length checked in begin() (and no
+      // chunked bodies); should it, the connection is closed at once, the
+      // rest unread (libmicrohttpd 0.9.75 takes no response during an upload).
+      log("request body past its limit during the upload: connection closed");
+      return MHD_NO;
+    }
+    r.body.append(upload_data, *upload_size);
+    *upload_size = 0;
+    return MHD_YES;
+  }
+  if (r.answered) return MHD_YES;
+  return answer(c, r, dispatch(c, r));
+}
+
+std::optional<Reply> ApiServer::checkAuth(MHD_Connection* c) const {
+  if (options.token.empty()) return std::nullopt;
+  const auto unauthorized = [](std::string_view message) {
+    Reply r = errorReply(401, message);
+    r.headers.emplace_back(MHD_HTTP_HEADER_WWW_AUTHENTICATE, "Bearer");
+    return r;
+  };
+  if (MHD_lookup_connection_value(c, MHD_GET_ARGUMENT_KIND, "token") != nullptr ||
+      MHD_lookup_connection_value(c, MHD_GET_ARGUMENT_KIND, "access_token") != nullptr) {
+    return unauthorized(
+        "a token in the query string is never accepted: send 'Authorization: Bearer TOKEN'");
+  }
+  if (options.allow_loopback_without_token) {
+    const MHD_ConnectionInfo* info = MHD_get_connection_info(c, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+    if (info != nullptr && http::isLoopbackPeer(info->client_addr)) return std::nullopt;
+  }
+  const char* header = headerValue(c, MHD_HTTP_HEADER_AUTHORIZATION);
+  if (header == nullptr) return unauthorized("missing 'Authorization: Bearer TOKEN' header");
+  const auto token = http::bearerToken(header);
+  if (!token) return unauthorized("the Authorization header is not 'Bearer TOKEN'");
+  if (!http::tokenEquals(options.token, *token)) return unauthorized("wrong bearer token");
+  return std::nullopt;
+}
+
+MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
+  // Request line and headers: libmicrohttpd answers itself when they do not
+  // fit its per-connection memory; below that, max_header_bytes applies.
+  std::size_t head = std::strlen(url) + r.method.size() + 12;
+  MHD_get_connection_values(c, MHD_HEADER_KIND, &sumValue, &head);
+  MHD_get_connection_values(c, MHD_GET_ARGUMENT_KIND, &sumValue, &head);
+  if (head > options.max_header_bytes) {
+    return answer(c, r,
+                  errorReply(431, "request line and headers larger than " +
+                                      std::to_string(options.max_header_bytes) + " bytes"));
+  }
+  r.route = http::route(r.method, url);
+  if (r.route.status != 0) {
+    Reply reply = errorReply(r.route.status, r.route.error);
+    if (r.route.status == 405) reply.headers.emplace_back(MHD_HTTP_HEADER_ALLOW, r.route.allow);
+    return answer(c, r, std::move(reply));
+  }
+  if (http::needsToken(r.route.endpoint)) {
+    if (auto refused = checkAuth(c)) return answer(c, r, std::move(*refused));
+  }
+  if (r.route.param_status != 0)
+    return answer(c, r, errorReply(r.route.param_status, r.route.error));
+
+  const bool takes_body = (r.route.endpoint == http::Endpoint::Scans && r.method == "POST") ||
+                          (r.route.endpoint == http::Endpoint::Calibration && r.method == "PUT");
+  if (!takes_body) {
+    if (r.route.endpoint == http::Endpoint::Events && r.method == "GET") return startEvents(c, r);
+    return answer(c, r, dispatch(c, r));
+  }
+  r.limit = r.route.endpoint == http::Endpoint::Calibration ? options.max_calibration_bytes
+                                                            : options.max_json_bytes;
+  // The limit is checked before any byte of the body is read, so the size
+  // must be known: a chunked body (no Content-Length) is refused with 411.
+  if (headerValue(c, MHD_HTTP_HEADER_TRANSFER_ENCODING) != nullptr) {
+    return answer(c, r,
+                  errorReply(411, "send the body with a Content-Length (no chunked uploads)"));
+  }
+  if (const char* length = headerValue(c, MHD_HTTP_HEADER_CONTENT_LENGTH)) {
+    std::uint64_t n = 0;
+    const auto end = length + std::strlen(length);
+    const auto [ptr, ec] = std::from_chars(length, end, n);
+    if (ec != std::errc{} || ptr != end) {
+      return answer(c, r, errorReply(400, "Content-Length is not a number"));
+    }
+    if (n > r.limit) {
+      return answer(
+          c, r,
+          errorReply(413, "request body of " + std::to_string(n) + " bytes is larger than " +
+                              std::to_string(r.limit) + " bytes"));
+    }
+    r.body.reserve(static_cast<std::size_t>(n));
+  }
+  return MHD_YES;  // the body comes in the next calls
+}
+
+MHD_Result ApiServer::answer(MHD_Connection* c, Request& r, Reply reply) {
+  MHD_Response* response = nullptr;
+  if (reply.file) {
+    const std::uint64_t size = reply.file->size();
+    const int fd = reply.file->release();
+    response = MHD_create_response_from_fd64(size, fd);  // closes fd when done
+    if (response == nullptr) {
+      ::close(fd);
+      reply = errorReply(500, "cannot send the file");
+    }
+  }
+  if (response == nullptr) {
+    response = MHD_create_response_from_buffer(reply.body.size(), reply.body.data(),
+                                               MHD_RESPMEM_MUST_COPY);
+  }
+  if (response == nullptr) return MHD_NO;
+  if (!(reply.status == 204)) {
+    MHD_add_response_header(response, MHD_HTTP_HEADER_CONTENT_TYPE, reply.content_type.c_str());
+  }
+  MHD_add_response_header(response, MHD_HTTP_HEADER_CACHE_CONTROL, reply.cache_control.c_str());
+  MHD_add_response_header(response, "X-Content-Type-Options", "nosniff");
+  for (const auto& [name, value] : reply.headers) {
+    MHD_add_response_header(response, name.c_str(), value.c_str());
+  }
+  const MHD_Result result = MHD_queue_response(c, static_cast<unsigned>(reply.status), response);
+  MHD_destroy_response(response);
+  if (result == MHD_YES) {
+    r.answered = true;
+    r.status = reply.status;
+  } else {
+    log("cannot queue the answer " + std::to_string(reply.status) + " to " + r.method + " " +
+        r.route.name);
+  }
+  return result;
+}
+
+Reply ApiServer::dispatch(MHD_Connection* c, Request& r) {
+  try {
+    return handle(c, r);
+  } catch (const ServiceError& e) {
+    return errorReply(e.httpStatus(), e.what());
+  } catch (const std::exception& e) {
+    log(std::string("internal error answering ") + r.method + ": " + e.what());
+    return errorReply(500, std::string("internal error: ") + e.what());
+  }
+}
+
+Reply ApiServer::handle(MHD_Connection* c, Request& r) {
+  using http::Endpoint;
+  const bool get = r.method == "GET" || r.method == "HEAD";
+  switch (r.route.endpoint) {
+    case Endpoint::Status:
+      return jsonReply(200, service.status());
+    case Endpoint::Scans: {
+      if (get) return jsonReply(200, service.listScans());
+      json scan_options = json::object();
+      if (r.body.find_first_not_of(" \t\r\n") != std::string::npos) {
+        try {
+          scan_options = json::parse(r.body);
+        } catch (const json::parse_error& e) {
+          return errorReply(400, std::string("the body is not valid JSON: ") + e.what());
+        }
+        if (!scan_options.is_object()) return errorReply(400, "the body must be a JSON object");
+      }
+      const std::string id = service.startScan(scan_options);
+      Reply reply = jsonReply(202, json{{"id", id}});
+      reply.headers.emplace_back(MHD_HTTP_HEADER_LOCATION, "/api/v1/scans/" + id);
+      return reply;
+    }
+    case Endpoint::Scan: {
+      if (get) {
+        auto scan = service.scan(r.route.id);
+        if (!scan) return errorReply(404, "no such scan: " + r.route.id);
+        return jsonReply(200, *scan);
+      }
+      if (!service.deleteScan(r.route.id)) return errorReply(404, "no such scan: " + r.route.id);
+      Reply reply;
+      reply.status = 204;
+      return reply;
+    }
+    case Endpoint::ScanFile: {
+      const auto path = service.scanFile(r.route.id, r.route.name);
+      auto file = path ? http::openRegularFile(*path) : std::nullopt;
+      if (!file) {
+        return errorReply(404, "scan " + r.route.id + " has no " + r.route.name + " (yet)");
+      }
+      Reply reply;
+      reply.content_type = std::string(http::scanFileContentType(r.route.name));
+      reply.file = std::move(file);
+      return reply;
+    }
+    case Endpoint::Calibration: {
+      if (get) return jsonReply(200, json{{"main", service.calibrationInfo("main")}});
+      const char* arg = MHD_lookup_connection_value(c, MHD_GET_ARGUMENT_KIND, "camera");
+      const std::string camera = arg != nullptr ? arg : "main";
+      if (!isValidScanId(camera)) return errorReply(400, "camera: not a valid camera name");
+      return jsonReply(200, service.installCalibration(camera, r.body));
+    }
+    case Endpoint::CalibrationFile: {
+      const auto path = service.calibrationFile(r.route.name);
+      auto file = path ? http::openRegularFile(*path) : std::nullopt;
+      if (!file) return errorReply(404, "no calibration installed for camera " + r.route.name);
+      Reply reply;
+      reply.content_type = "application/octet-stream";
+      reply.file = std::move(file);
+      return reply;
+    }
+    case Endpoint::Events: {  // HEAD: the headers of a stream, no stream
+      Reply reply;
+      reply.content_type = "text/event-stream";
+      return reply;
+    }
+    case Endpoint::Metrics: {
+      std::string text = service.metricsText();
+      if (!text.empty() && text.back() != '\n') text += '\n';
+      std::size_t clients = 0;
+      {
+        std::lock_guard lock(sse_mutex);
+        clients = sse_clients.size();
+      }
+      Reply reply;
+      reply.body = text + metrics.text(clients);
+      reply.content_type = "text/plain; version=0.0.4; charset=utf-8";
+      return reply;
+    }
+    case Endpoint::Static:
+      return staticFile(r);
+    case Endpoint::None:
+      break;
+  }
+  return errorReply(404, "no such endpoint");
+}
+
+Reply ApiServer::staticFile(const Request& r) const {
+  if (options.web_root.empty()) return errorReply(404, "no web page is configured (web_root)");
+  auto file = http::openStaticFile(options.web_root, r.route.name);
+  if (!file) return errorReply(404, "no such file: /" + r.route.name);
+  Reply reply;
+  reply.content_type = std::string(http::staticContentType(r.route.name));
+  // The page itself is always revalidated; its assets may be reused a while.
+  reply.cache_control =
+      reply.content_type.starts_with("text/html") ? "no-cache" : "public, max-age=300";
+  reply.file = std::move(file);
+  return reply;
+}
+
+MHD_Result ApiServer::startEvents(MHD_Connection* c, Request& r) {
+  auto client = std::make_shared<SseClient>();
+  client->owner = this;
+  client->connection = c;
+  if (const MHD_ConnectionInfo* info =
+          MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD)) {
+    client->fd = info->connect_fd;
+  }
+  {
+    std::lock_guard lock(sse_mutex);
+    if (stopping) return answer(c, r, errorReply(503, "the server is stopping"));
+    if (sse_clients.size() >= options.max_sse_clients) {
+      return answer(c, r,
+                    errorReply(503, "too many event streams (at most " +
+                                        std::to_string(options.max_sse_clients) + ")"));
+    }
+    sse_clients.emplace(client.get(), client);  // reserves the place
+  }
+  const auto unregister = [&] {
+    std::lock_guard lock(sse_mutex);
+    sse_clients.erase(client.get());
+  };
+  try {
+    auto stream = service.subscribe();
+    std::lock_guard lock(client->mutex);
+    client->stream = std::move(stream);
+  } catch (const std::exception& e) {
+    unregister();
+    const auto* se = dynamic_cast<const ServiceError*>(&e);
+    return answer(c, r,
+                  errorReply(se != nullptr ? se->httpStatus() : 500,
+                             std::string("cannot subscribe to events: ") + e.what()));
+  }
+  MHD_Response* response = MHD_create_response_from_callback(MHD_SIZE_UNKNOWN, kSseBlockSize,
+                                                             &sseRead, client.get(), &sseFree);
+  if (response == nullptr) {
+    unregister();
+    return answer(c, r, errorReply(500, "cannot create the event stream"));
+  }
+  MHD_add_response_header(response, MHD_HTTP_HEADER_CONTENT_TYPE, "text/event-stream");
+  MHD_add_response_header(response, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
+  MHD_add_response_header(response, "X-Content-Type-Options", "nosniff");
+  MHD_add_response_header(response, "X-Accel-Buffering", "no");
+  const MHD_Result result = MHD_queue_response(c, MHD_HTTP_OK, response);
+  MHD_destroy_response(response);  // on failure this frees the client (sseFree)
+  if (result == MHD_YES) {
+    r.answered = true;
+    r.streaming = true;
+    r.status = 200;
+    metrics.record(200, Clock::now() - r.start);
+  }
+  sse_cv.notify_all();  // the pump wakes for its first client
+  return result;
+}
+
+void ApiServer::completed(Request& r) {
+  if (r.answered && !r.streaming) metrics.record(r.status, Clock::now() - r.start);
+}
+
+void ApiServer::sseFreed(SseClient* client) {
+  std::shared_ptr<SseClient> last;  // destroyed outside the lock
+  {
+    std::lock_guard lock(sse_mutex);
+    const auto it = sse_clients.find(client);
+    if (it != sse_clients.end()) {
+      last = std::move(it->second);
+      sse_clients.erase(it);
+    }
+  }
+  sse_cv.notify_all();
+}
+
+// Moves events from the service into the streams' buffers, adds keepalives,
+// and resumes the suspended streams that have something to send. It sleeps
+// while there is no stream, else looks every kPumpTick; it never waits on a
+// client (the service's queues are bounded and drop the oldest).
+void ApiServer::pumpLoop() {
+  std::vector<std::shared_ptr<SseClient>> clients;
+  while (true) {
+    {
+      std::unique_lock lock(sse_mutex);
+      sse_cv.wait(lock, [this] { return stopping || !sse_clients.empty(); });
+      if (stopping) return;
+      sse_cv.wait_for(lock, kPumpTick, [this] { return stopping; });
+      if (stopping) return;
+      for (const auto& [key, client] : sse_clients)
+        clients.push_back(client);
+    }
+    const auto now = Clock::now();
+    for (const auto& client : clients) {
+      if (client->gone) continue;
+      std::lock_guard lock(client->mutex);
+      if (!client->stream) continue;  // still being subscribed
+      if (!client->ended) {
+        while (client->pending.size() < kSsePendingLimit) {
+          auto event = client->stream->next(std::chrono::milliseconds(0));
+          if (!event) break;
+          client->append(formatEvent(*event), now);
+        }
+        const std::uint64_t dropped = client->stream->dropped();
+        if (dropped != client->dropped_seen) {
+          client->append(": " + std::to_string(dropped - client->dropped_seen) +
+                             " events dropped (slow reader)\n\n",
+                         now);
+          client->dropped_seen = dropped;
+        }
+        if (client->stream->closed()) client->ended = true;
+        if (client->pending.empty() && now - client->last_output >= options.sse_keepalive) {
+          client->append(": keepalive\n\n", now);
+        }
+      }
+      if (client->suspended && (!client->pending.empty() || client->ended)) {
+        client->suspended = false;
+        MHD_resume_connection(client->connection);
+      }
+    }
+    dropHungUp(clients);
+    clients.clear();  // a freed client's stream (its subscription) ends here
+  }
+}
+
+// libmicrohttpd does not watch a suspended connection, so a client that
+// went away would only be noticed at the next keepalive. The pump polls the
+// suspended streams' sockets for a hang-up instead (one poll() per tick) and
+// ends those streams at once. The sockets stay open meanwhile: a suspended
+// connection is only resumed (and then maybe closed) by this thread.
+void ApiServer::dropHungUp(const std::vector<std::shared_ptr<SseClient>>& clients) {
+  std::vector<pollfd> fds;
+  std::vector<SseClient*> polled;
+  for (const auto& client : clients) {
+    std::lock_guard lock(client->mutex);
+    if (client->suspended && !client->gone && client->fd >= 0) {
+      fds.push_back(pollfd{client->fd, POLLRDHUP, 0});
+      polled.push_back(client.get());
+    }
+  }
+  if (fds.empty() || ::poll(fds.data(), fds.size(), 0) <= 0) return;
+  for (std::size_t i = 0; i < fds.size(); ++i) {
+    if ((fds[i].revents & (POLLRDHUP | POLLHUP | POLLERR)) == 0) continue;
+    SseClient& client = *polled[i];
+    std::lock_guard lock(client.mutex);
+    client.ended = true;
+    client.pending.clear();
+    if (client.suspended) {
+      client.suspended = false;
+      MHD_resume_connection(client.connection);
+    }
+  }
+}
+
+struct HttpApi::Impl {
+  Impl(HeadService& service, HttpOptions options) : server(service, std::move(options)) {}
+  ApiServer server;
+};
+
+HttpApi::HttpApi(HeadService& service, HttpOptions options)
+    : impl_(std::make_unique<Impl>(service, std::move(options))) {
+  impl_->server.start();
+}
+
+HttpApi::~HttpApi() {
+  impl_->server.stop();
+}
+
+std::uint16_t HttpApi::port() const {
+  return impl_->server.bound_port;
+}
+
+}  // namespace cylscan::firmware
