@@ -75,6 +75,7 @@ struct Request {
   Clock::time_point start = Clock::now();
   http::Route route;
   std::string method;
+  std::string url;
   std::size_t limit = 0;  // body bytes allowed
   std::string body;
   bool answered = false;   // a response is queued
@@ -197,6 +198,12 @@ void mhdLogger(void* cls, const char* fmt, va_list ap) {
   std::string_view text(line);
   while (!text.empty() && (text.back() == '\n' || text.back() == '\r'))
     text.remove_suffix(1);
+  // A client that goes away is normal (an event stream ends so): not an error.
+  for (const std::string_view normal :
+       {"forcibly closed by remote peer", "no longer available for sending",
+        "Connection reset by peer", "Broken pipe"}) {
+    if (text.find(normal) != std::string_view::npos) return;
+  }
   static_cast<const ApiServer*>(cls)->log(text);
 }
 
@@ -342,6 +349,7 @@ MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* met
   if (*con_cls == nullptr) {
     auto request = std::make_unique<Request>();
     request->method = method;
+    request->url = url;
     Request& r = *request;
     *con_cls = request.release();  // owned again in completedTrampoline
     return begin(c, url, r);
@@ -477,7 +485,7 @@ MHD_Result ApiServer::answer(MHD_Connection* c, Request& r, Reply reply) {
     r.status = reply.status;
   } else {
     log("cannot queue the answer " + std::to_string(reply.status) + " to " + r.method + " " +
-        r.route.name);
+        r.url);
   }
   return result;
 }
@@ -488,7 +496,7 @@ Reply ApiServer::dispatch(MHD_Connection* c, Request& r) {
   } catch (const ServiceError& e) {
     return errorReply(e.httpStatus(), e.what());
   } catch (const std::exception& e) {
-    log(std::string("internal error answering ") + r.method + ": " + e.what());
+    log("internal error answering " + r.method + " " + r.url + ": " + e.what());
     return errorReply(500, std::string("internal error: ") + e.what());
   }
 }
@@ -595,6 +603,9 @@ Reply ApiServer::staticFile(const Request& r) const {
 MHD_Result ApiServer::startEvents(MHD_Connection* c, Request& r) {
   auto client = std::make_shared<SseClient>();
   client->owner = this;
+  // A first comment, so the client has the head and a first chunk at once
+  // even when the service has nothing to say yet.
+  client->pending = ": cylscan events\n\n";
   client->connection = c;
   if (const MHD_ConnectionInfo* info =
           MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD)) {

@@ -323,6 +323,15 @@ TEST_F(HttpApiTest, Calibration) {
   EXPECT_EQ(service.install_calls, 3);
 }
 
+TEST_F(HttpApiTest, InternalErrorsAre500AndLogged) {
+  service.fail_internally = true;
+  start();
+  const HttpResult r = get("/api/v1/scans");
+  EXPECT_EQ(r.status, 500);
+  EXPECT_NE(errorOf(r).find("scan index unreadable"), std::string::npos) << r.body;
+  EXPECT_NE(logged.find("GET /api/v1/scans: scan index unreadable"), std::string::npos) << logged;
+}
+
 TEST_F(HttpApiTest, Metrics) {
   start();
   get("/api/v1/status");

@@ -20,6 +20,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -73,6 +74,8 @@ class FakeService : public firmware::HeadService {
   std::map<std::string, std::filesystem::path> calibration_files;
   std::optional<firmware::ServiceError> start_error, delete_error, install_error;
   std::string next_id = "20261201-160102-3f9a";
+  bool initial_event = true;     // subscribe() queues a "state" event first
+  bool fail_internally = false;  // listScans() throws a plain exception
   std::string metrics =
       "# TYPE cylscan_scans_total counter\ncylscan_scans_total{result=\"done\"} 3\n";
 
@@ -96,6 +99,7 @@ class FakeService : public firmware::HeadService {
   }
   json listScans() const override {
     std::lock_guard lock(mutex);
+    if (fail_internally) throw std::runtime_error("scan index unreadable");
     json list = json::array();
     for (auto it = scans.rbegin(); it != scans.rend(); ++it)
       list.push_back(it->second);
@@ -148,7 +152,7 @@ class FakeService : public firmware::HeadService {
       std::lock_guard lock(mutex);
       queues_.push_back(q);
     }
-    publishTo(*q, "state", json{{"state", "idle"}, {"scan", nullptr}});
+    if (initial_event) publishTo(*q, "state", json{{"state", "idle"}, {"scan", nullptr}});
     return std::make_unique<FakeStream>(q);
   }
   std::string metricsText() const override {

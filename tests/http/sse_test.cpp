@@ -124,6 +124,18 @@ TEST_F(SseTest, EventsInOrderWithIds) {
   EXPECT_EQ(json::parse(events[6].data)["text"], "two\nlines");
 }
 
+TEST_F(SseTest, HeadComesAtOnceWithoutEvents) {
+  service.initial_event = false;
+  options.sse_keepalive = std::chrono::seconds(60);
+  start();
+  auto s = openStream();
+  s->readUntil([](const std::string& t) { return t.find(": cylscan events") != std::string::npos; },
+               std::chrono::seconds(3));
+  EXPECT_EQ(statusOf(s->received()), 200) << s->received();
+  EXPECT_NE(s->received().find("Cache-Control: no-store"), std::string::npos);
+  EXPECT_NE(s->received().find(": cylscan events\n\n"), std::string::npos);
+}
+
 TEST_F(SseTest, KeepalivesWhileIdle) {
   start();
   auto s = openStream();
