@@ -56,6 +56,11 @@ class ScanService final : public HeadService {
 
   const std::string& boardName() const { return board_name_; }
   const ScanStore& store() const { return store_; }
+  // The board, for tests once stop() has returned (the worker owns it while running).
+  drivers::Board* boardAfterStop() {
+    std::lock_guard lock(mutex_);
+    return worker_done_ ? board_.get() : nullptr;
+  }
   // Waits until no scan is queued or running (tests, shutdown); false on timeout.
   bool waitUntilIdle(std::chrono::milliseconds timeout) const;
   // The bytes of free disk a scan of `options` asks for (outputs, the bundle
@@ -112,7 +117,8 @@ class ScanService final : public HeadService {
   std::optional<std::string> last_error_;
   bool realtime_ = false;
   std::string last_id_;
-  std::map<std::string, nlohmann::json, std::less<>> calibration_info_;  // by camera, when installed
+  std::map<std::string, nlohmann::json, std::less<>>
+      calibration_info_;  // by camera, when installed
 
   Counter frames_total_;
   LabelledCounter scans_total_;
