@@ -4,10 +4,13 @@
 // Scan, waits for live progress and for the 3D viewer to show the cloud, and
 // checks that nothing failed on the way and that the viewer drew something.
 //
-//   node browser.test.mjs --daemon PATH --fixture DIR --web-root DIR --out DIR
+//   node browser.test.mjs --daemon PATH --fixture DIR --web-root DIR --out DIR [--token T]
 //
 // DIR of --fixture is the `quick_head` CTest fixture (board/, calib.bin,
-// ready); --out receives screenshot.png. Exit status 0 only on success.
+// ready); --out receives screenshot.png (screenshot-token.png with --token).
+// With --token the daemon asks for a bearer token: the page must ask for it,
+// and, once it is typed in, send it with every request (event stream,
+// previews and the cloud included). Exit status 0 only on success.
 import { spawn } from 'node:child_process';
 import { once } from 'node:events';
 import { existsSync } from 'node:fs';
@@ -33,6 +36,7 @@ const { values: args } = parseArgs({
     fixture: { type: 'string' },
     'web-root': { type: 'string' },
     out: { type: 'string' },
+    token: { type: 'string' },
   },
 });
 for (const name of ['daemon', 'fixture', 'web-root', 'out']) {
@@ -57,7 +61,8 @@ async function startDaemon(dataDir) {
     '--data', dataDir,
     '--web-root', resolve(args['web-root']),
   ];
-  log(`starting ${args.daemon} ${argv.join(' ')}`);
+  if (args.token) argv.push('--token', args.token);
+  log(`starting ${args.daemon} ${argv.join(' ').replace(args.token || '\0', '***')}`);
   const daemon = spawn(args.daemon, argv, { stdio: ['ignore', 'pipe', 'pipe'] });
   let stderr = '';
   daemon.stderr.on('data', (chunk) => {
@@ -90,7 +95,10 @@ async function putCalibration(base) {
   const body = await readFile(join(args.fixture, 'calib.bin'));
   const response = await fetch(`${base}/api/v1/calibration`, {
     method: 'PUT',
-    headers: { 'Content-Type': 'application/octet-stream' },
+    headers: {
+      'Content-Type': 'application/octet-stream',
+      ...(args.token ? { Authorization: `Bearer ${args.token}` } : {}),
+    },
     body,
   });
   const text = await response.text();
@@ -153,9 +161,13 @@ async function run() {
   const page = context.pages()[0] ?? (await context.newPage());
 
   const problems = [];
+  // With --token, the 401s before the token is typed in are expected.
+  let tokenGiven = !args.token;
+  const unauthorized = [];
   page.on('pageerror', (error) => problems.push(`page error: ${error.message}`));
   page.on('console', (message) => {
-    if (message.type() === 'error') problems.push(`console error: ${message.text()}`);
+    if (message.type() === 'error' && !tokenGiven && message.text().includes('401')) unauthorized.push(message.text());
+    else if (message.type() === 'error') problems.push(`console error: ${message.text()}`);
     else log(`console ${message.type()}: ${message.text()}`);
   });
   page.on('request', (request) => {
@@ -167,10 +179,24 @@ async function run() {
     problems.push(`request failed: ${request.method()} ${request.url()} (${request.failure()?.errorText})`);
   });
   page.on('response', (response) => {
-    if (response.status() >= 400) problems.push(`HTTP ${response.status()}: ${response.request().method()} ${response.url()}`);
+    const what = `HTTP ${response.status()}: ${response.request().method()} ${response.url()}`;
+    if (response.status() === 401 && !tokenGiven) unauthorized.push(what);
+    else if (response.status() >= 400) problems.push(what);
   });
 
   await page.goto(`${base}/`, { waitUntil: 'load' });
+  if (args.token) {
+    await page.waitForSelector('#token-box:not([hidden])', { timeout: 15_000 });
+    await page.waitForFunction(() => document.getElementById('connection').textContent === 'token needed', null, { timeout: 15_000 });
+    log(`the page asks for a token (${unauthorized.length} requests refused with 401 so far)`);
+    if (unauthorized.length === 0) problems.push('the token box is shown but no request was refused');
+    await page.fill('#token-input', args.token);
+    tokenGiven = true;
+    await page.click('#token-form button[type=submit]');
+    const stored = await page.evaluate(() => sessionStorage.getItem('cylscan.token'));
+    if (stored !== args.token) problems.push('the token is not kept in sessionStorage');
+    if (await page.isVisible('#token-box')) problems.push('the token box is still shown after the token was given');
+  }
   await page.waitForFunction(() => document.getElementById('connection').textContent === 'live', null, { timeout: 15_000 });
   await page.waitForFunction(() => document.getElementById('st-calibration').textContent === 'installed', null, { timeout: 15_000 });
   const board = await page.textContent('#st-board');
@@ -203,7 +229,7 @@ async function run() {
   // Let the renderer present its frame, then look at the pixels.
   await page.evaluate(() => new Promise((done) => requestAnimationFrame(() => requestAnimationFrame(done))));
   await mkdir(args.out, { recursive: true });
-  const shotPath = join(args.out, 'screenshot.png');
+  const shotPath = join(args.out, args.token ? 'screenshot-token.png' : 'screenshot.png');
   const shot = await page.screenshot({ fullPage: true });
   await writeFile(shotPath, shot);
   const box = await (await page.$('#viewer')).boundingBox();
