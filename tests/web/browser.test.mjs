@@ -129,6 +129,17 @@ function drawnFraction(png, box) {
   return drawn / total;
 }
 
+// Share of the pixels that differ between two same-sized images.
+function changedFraction(a, b) {
+  if (a.width !== b.width || a.height !== b.height) fail('viewer screenshots of different sizes');
+  let changed = 0;
+  for (let i = 0; i < a.data.length; i += 4) {
+    const d = Math.abs(a.data[i] - b.data[i]) + Math.abs(a.data[i + 1] - b.data[i + 1]) + Math.abs(a.data[i + 2] - b.data[i + 2]);
+    if (d > 24) changed++;
+  }
+  return changed / (a.width * a.height);
+}
+
 async function run() {
   if (!existsSync(join(args.fixture, 'ready'))) {
     fail(`the quick_head fixture is not ready: ${join(args.fixture, 'ready')} is missing (run the fixture.quick_head test)`);
@@ -238,6 +249,24 @@ async function run() {
   if (!(fraction > MIN_DRAWN_FRACTION)) {
     problems.push(`the viewer looks blank: ${(fraction * 100).toFixed(3)} % of its pixels drawn (want > ${MIN_DRAWN_FRACTION * 100} %)`);
   }
+
+  // The viewer reacts: colour by depth, then orbit with the mouse; each
+  // changes a good share of the viewer's pixels.
+  const viewerPixels = async () => PNG.sync.read(await page.locator('#viewer').screenshot());
+  const before = await viewerPixels();
+  await page.selectOption('#colour-mode', 'depth');
+  const depthColoured = await viewerPixels();
+  const centre = { x: box.x + box.width / 2, y: box.y + box.height / 2 };
+  await page.mouse.move(centre.x, centre.y);
+  await page.mouse.down();
+  await page.mouse.move(centre.x + box.width / 4, centre.y + box.height / 8, { steps: 8 });
+  await page.mouse.up();
+  const orbited = await viewerPixels();
+  const colourChange = changedFraction(before, depthColoured);
+  const orbitChange = changedFraction(depthColoured, orbited);
+  log(`colour by depth changed ${(colourChange * 100).toFixed(2)} %, orbiting ${(orbitChange * 100).toFixed(2)} % of the viewer`);
+  if (!(colourChange > fraction / 4)) problems.push(`colouring by depth changed only ${(colourChange * 100).toFixed(3)} % of the viewer`);
+  if (!(orbitChange > fraction / 4)) problems.push(`orbiting changed only ${(orbitChange * 100).toFixed(3)} % of the viewer`);
 
   if (problems.length > 0) fail(`${problems.length} problem(s):\n  ${problems.join('\n  ')}`);
 }
