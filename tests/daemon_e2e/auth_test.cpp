@@ -42,7 +42,7 @@ TEST(DaemonAuth, TokenRequiredWhenConfigured) {
   const std::string id = started.json().at("id");
   HttpClient authed(client.baseUrl());
   authed.setDefaultHeaders(good);
-  ASSERT_EQ(waitForScan(authed, id).value("state", ""), "done");
+  ASSERT_EQ(finishScan(authed, id).value("state", ""), "done");
 
   const std::string& calib = quickCalibration();
   const std::vector<Request> requests = {
@@ -98,7 +98,7 @@ TEST(DaemonAuth, TokenRequiredWhenConfigured) {
   EXPECT_EQ(authed.get("/api/v1/scans/" + id).status, 404);
   const auto again = authed.postJson("/api/v1/scans", {{"frames", 5}, {"save_bundle", false}});
   ASSERT_EQ(again.status, 202) << again.describe();
-  EXPECT_EQ(waitForScan(authed, again.json().at("id")).value("state", ""), "done");
+  EXPECT_EQ(finishScan(authed, again.json().at("id")).value("state", ""), "done");
   daemon.stop();
 }
 

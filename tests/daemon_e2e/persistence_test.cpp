@@ -120,13 +120,14 @@ TEST(DaemonPersistence, SigkillWhileWritingKeepsTheEarlierScans) {
   for (int i = 0; i < 2; ++i) {
     const std::string id = startScan(daemon.client());
     ASSERT_FALSE(id.empty()) << daemon.stderrTail();
-    ASSERT_EQ(waitForScan(daemon.client(), id).value("state", ""), "done") << daemon.stderrTail();
+    ASSERT_EQ(finishScan(daemon.client(), id).value("state", ""), "done") << daemon.stderrTail();
     kept[id] = record(daemon.client(), id);
     ASSERT_FALSE(kept[id].cloud.empty());
   }
 
   // The moments to kill at: when the store's temporary directory appears;
-  // right after the POST; after some frames; when progress passes one half.
+  // while the outputs are written into it; right after the POST; after some
+  // frames; when progress passes one half.
   struct Moment {
     std::string name;
     std::function<bool(const HttpClient&, const std::string&, const fs::path&)> reached;
@@ -137,6 +138,20 @@ TEST(DaemonPersistence, SigkillWhileWritingKeepsTheEarlierScans) {
          for (const auto& p : partials(data))
            if (p.filename().string() == ".partial-" + id) return true;
          return false;
+       }},
+      // The outputs are written into the partial dir after the last frame,
+      // scan.json last before the rename: kill in the middle of those.
+      {"when the partial's texture.png appeared",
+       [](const HttpClient&, const std::string& id, const fs::path& data) {
+         return fs::exists(data / "scans" / (".partial-" + id) / "texture.png");
+       }},
+      {"when the partial's cloud.ply appeared",
+       [](const HttpClient&, const std::string& id, const fs::path& data) {
+         return fs::exists(data / "scans" / (".partial-" + id) / "cloud.ply");
+       }},
+      {"when the partial's scan.json appeared",
+       [](const HttpClient&, const std::string& id, const fs::path& data) {
+         return fs::exists(data / "scans" / (".partial-" + id) / "scan.json");
        }},
       {"right after the POST",
        [](const HttpClient&, const std::string&, const fs::path&) { return true; }},
@@ -172,14 +187,14 @@ TEST(DaemonPersistence, SigkillWhileWritingKeepsTheEarlierScans) {
   // The restarted daemon still scans.
   const std::string id = startScan(daemon.client(), {{"save_bundle", false}});
   ASSERT_FALSE(id.empty());
-  EXPECT_EQ(waitForScan(daemon.client(), id).value("state", ""), "done");
+  EXPECT_EQ(finishScan(daemon.client(), id).value("state", ""), "done");
   daemon.stop();
 }
 
 TEST(DaemonPersistence, SigtermDuringAScanStopsCleanly) {
   QuickDaemon daemon;
   const std::string done = startScan(daemon.client(), {{"frames", 5}});
-  ASSERT_EQ(waitForScan(daemon.client(), done).value("state", ""), "done");
+  ASSERT_EQ(finishScan(daemon.client(), done).value("state", ""), "done");
   const Recorded before = record(daemon.client(), done);
 
   // A long scan (2×300 frames), stopped once it has frames.

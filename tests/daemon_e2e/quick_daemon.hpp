@@ -180,4 +180,15 @@ inline bool waitIdle(const HttpClient& client,
   return false;
 }
 
+// waitForScan, then waitIdle: for tests whose next request needs the head
+// free again (the scan's own "done" is checked by the scan tests). The scan
+// as the daemon then reports it.
+inline json finishScan(const HttpClient& client, const std::string& id) {
+  json scan = waitForScan(client, id);
+  EXPECT_TRUE(waitIdle(client)) << "the daemon is not idle after scan " << id;
+  const auto r = client.get("/api/v1/scans/" + id);
+  if (r.status == 200) scan = r.json();
+  return scan;
+}
+
 }  // namespace cylscan::test

@@ -39,7 +39,8 @@ Eigen::Vector3d vec(const json& v) {
 }
 
 json truthObject(const std::string& type) {
-  for (const auto& o : quickTruth().at("scenes").at("sphere_on_plane").at("objects"))
+  const json truth = quickTruth();
+  for (const auto& o : truth.at("scenes").at("sphere_on_plane").at("objects"))
     if (o.at("type") == type) return o;
   throw std::runtime_error("truth.json: no " + type + " in sphere_on_plane");
 }
@@ -138,6 +139,12 @@ TEST(DaemonScan, PostToDownloadedPlyMatchesTheTruth) {
   EXPECT_EQ(scan.value("frames", 0), 50) << "the board's 2×25 frames: " << scan.dump();
   for (const char* name : {"cloud.ply", "depth.tiff", "texture.png", "phase.png", "depth.png"})
     EXPECT_TRUE(has(files(scan), name)) << name << " missing from " << scan.dump();
+  {
+    // At once: a scan that says "done" serves its files.
+    SCOPED_TRACE("the files, right after the scan said done");
+    expectFilesAsListed(client, id, scan);
+  }
+  ASSERT_TRUE(waitIdle(client));
   expectFilesAsListed(client, id, scan);
 
   // The cloud against the truth.
@@ -201,6 +208,7 @@ TEST(DaemonScan, PostToDownloadedPlyMatchesTheTruth) {
   ASSERT_FALSE(second.empty());
   EXPECT_NE(second, id);
   EXPECT_EQ(waitForScan(client, second).value("state", ""), "done");
+  ASSERT_TRUE(waitIdle(client));
   const json list = client.get("/api/v1/scans").json();
   ASSERT_TRUE(list.is_array()) << list.dump();
   ASSERT_EQ(list.size(), 2u) << list.dump();
@@ -270,6 +278,10 @@ TEST(DaemonScan, WithoutCalibrationHasTextureAndPhaseButNoCloud) {
   EXPECT_TRUE(has(listed, "texture.png")) << scan.dump();
   EXPECT_TRUE(has(listed, "phase.png")) << scan.dump();
   EXPECT_EQ(scan.value("points", std::size_t{0}), 0u) << scan.dump();
+  if (scan.contains("calibrated")) {
+    EXPECT_EQ(scan["calibrated"], false) << scan.dump();
+  }
+  ASSERT_TRUE(waitIdle(client));
   EXPECT_EQ(client.get("/api/v1/scans/" + id + "/cloud.ply").status, 404);
   decodePng(client.get("/api/v1/scans/" + id + "/texture.png"), "texture");
   decodePng(client.get("/api/v1/scans/" + id + "/phase.png"), "phase");
