@@ -233,26 +233,32 @@ std::uint64_t ScanService::scanEstimateBytes(const json& options) const {
   return bytes;
 }
 
-std::string ScanService::newScanId() {
-  const auto now = std::chrono::system_clock::now();
+std::string ScanService::newScanId(std::chrono::system_clock::time_point now) {
   const std::time_t secs = std::chrono::system_clock::to_time_t(now);
   std::tm tm{};
   gmtime_r(&secs, &tm);
   std::array<char, 32> stamp{};
   std::strftime(stamp.data(), stamp.size(), "%Y%m%d-%H%M%S", &tm);
+  // The suffix is the millisecond (×64, plus a random 0..63), so ids made in
+  // one second sort as they were made, by this process or an earlier one;
+  // within this process they strictly increase.
   static thread_local std::mt19937 rng{std::random_device{}()};
-  // Within one second the suffixes increase, so ids sort as they were made.
-  unsigned suffix = std::uniform_int_distribution<unsigned>(0, 0x7fff)(rng);
+  const auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()) % 1000;
+  unsigned suffix =
+      static_cast<unsigned>(ms.count()) * 64 + std::uniform_int_distribution<unsigned>(0, 63)(rng);
   if (last_id_.starts_with(stamp.data()) && last_id_.size() == 20)
-    suffix = static_cast<unsigned>(std::stoul(last_id_.substr(16), nullptr, 16)) + 1;
+    suffix =
+        std::max(suffix, static_cast<unsigned>(std::stoul(last_id_.substr(16), nullptr, 16)) + 1);
   for (;; ++suffix) {
     std::array<char, 8> hex{};
-    std::snprintf(hex.data(), hex.size(), "%04x", suffix & 0xffffu);
+    std::snprintf(hex.data(), hex.size(), "%04x", std::min(suffix, 0xffffu));
     std::string id = std::string(stamp.data()) + "-" + hex.data();
     if (!store_.get(id)) {
       last_id_ = id;
       return id;
     }
+    if (suffix >= 0xffffu) throw ServiceError(503, "too many scans in one second");
   }
 }
 
@@ -289,13 +295,14 @@ std::string ScanService::startScan(const json& options) {
   } catch (const std::system_error& e) {
     logWarn(std::string("free space unknown: ") + e.what());
   }
+  const auto now = std::chrono::system_clock::now();
   auto job = std::make_unique<Job>();
-  job->id = newScanId();
+  job->id = newScanId(now);
   job->request = std::move(request);
   job->object = {{"id", job->id},
                  {"state", "queued"},
                  {"progress", 0.0},
-                 {"created", isoTime(std::chrono::system_clock::now())},
+                 {"created", isoTime(now)},
                  {"finished", nullptr},
                  {"duration_s", nullptr},
                  {"options", job->request.given},
@@ -323,11 +330,7 @@ void ScanService::worker() {
       job->started = Clock::now();
       events_.publish("scan", job->object);
     }
-    runJob(*job);
-    std::lock_guard lock(mutex_);
-    job_.reset();
-    publishState();
-    cv_.notify_all();
+    runJob(*job);  // ends with finishLocked()
   }
   std::lock_guard lock(mutex_);
   worker_done_ = true;
@@ -343,8 +346,17 @@ void ScanService::reopenBoard(const std::optional<fs::path>& scene) {
   board_scene_ = scene;
 }
 
+void ScanService::finishLocked(const json& object) {
+  job_.reset();
+  events_.publish("scan", object);
+  publishState();
+  cv_.notify_all();
+}
+
+// `job` is gone once finishLocked() ran: only `id` is used after it.
 void ScanService::runJob(Job& job) {
   const Request& req = job.request;
+  const std::string id = job.id;
   const auto isStopping = [&] {
     std::lock_guard lock(mutex_);
     return stopping_;
@@ -440,18 +452,20 @@ void ScanService::runJob(Job& job) {
     result["trigger_jitter"] = jitterJson(report.trigger_jitter);
     if (bundle) result["bundle"] = "bundle";
 
+    // The record as it will be stored: the job shows "running" until the
+    // scan is committed, so "done" is never seen before its files are there.
     json object;
     {
       std::lock_guard lock(mutex_);
-      for (const auto& [k, v] : result.items())
-        job.object[k] = v;
-      job.object["state"] = "done";
-      job.object["progress"] = 1.0;
-      job.object["finished"] = isoTime(std::chrono::system_clock::now());
-      job.object["duration_s"] = secondsSince(job.started);
       object = job.object;
     }
-    store_.commit(job.id, object);
+    for (const auto& [k, v] : result.items())
+      object[k] = v;
+    object["state"] = "done";
+    object["progress"] = 1.0;
+    object["finished"] = isoTime(std::chrono::system_clock::now());
+    object["duration_s"] = secondsSince(job.started);
+    store_.commit(id, object);
     scans_total_.inc("done");
     scan_duration_.observe(object["duration_s"].get<double>());
     std::lock_guard lock(mutex_);
@@ -459,9 +473,8 @@ void ScanService::runJob(Job& job) {
     trigger_jitter_ = report.trigger_jitter;
     realtime_ = report.realtime;
     last_error_.reset();
-    events_.publish("scan", object);
-    logInfo("scan " + job.id + " done in " + std::to_string(object["duration_s"].get<double>()) +
-            " s");
+    finishLocked(object);
+    logInfo("scan " + id + " done in " + std::to_string(object["duration_s"].get<double>()) + " s");
   } catch (const std::exception& e) {
     error = isStopping() ? "aborted: daemon stopping" : e.what();
   }
@@ -469,28 +482,28 @@ void ScanService::runJob(Job& job) {
     json object;
     {
       std::lock_guard lock(mutex_);
-      job.object["state"] = "failed";
-      job.object["error"] = error;
-      job.object["files"] = json::array();
-      job.object["finished"] = isoTime(std::chrono::system_clock::now());
-      job.object["duration_s"] = secondsSince(job.started);
       object = job.object;
     }
+    object["state"] = "failed";
+    object["error"] = error;
+    object["files"] = json::array();
+    object["finished"] = isoTime(std::chrono::system_clock::now());
+    object["duration_s"] = secondsSince(job.started);
     try {
-      store_.commit(job.id, object, /*keep_files=*/false);
+      store_.commit(id, object, /*keep_files=*/false);
     } catch (const std::exception& e) {
-      logError("cannot record the failed scan " + job.id + ": " + e.what());
-      store_.discard(job.id);
+      logError("cannot record the failed scan " + id + ": " + e.what());
+      store_.discard(id);
     }
     scans_total_.inc("failed");
     std::lock_guard lock(mutex_);
     last_error_ = error;
-    events_.publish("error", {{"id", job.id}, {"error", error}});
-    events_.publish("scan", object);
-    logError("scan " + job.id + " failed: " + error);
+    events_.publish("error", {{"id", id}, {"error", error}});
+    finishLocked(object);
+    logError("scan " + id + " failed: " + error);
   }
   try {
-    store_.applyRetention(options_.retention, job.id);
+    store_.applyRetention(options_.retention, id);
   } catch (const std::exception& e) {
     logError(std::string("retention: ") + e.what());
   }

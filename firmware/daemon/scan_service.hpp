@@ -90,9 +90,11 @@ class ScanService final : public HeadService {
   void runJob(Job& job);
   void reopenBoard(const std::optional<std::filesystem::path>& scene);
   void loadCalibrationInfo();
-  void publishState();               // mutex_ held
+  void publishState();  // mutex_ held
+  // The job's end (mutex_ held): no job, its last scan event, the state.
+  void finishLocked(const nlohmann::json& object);
   nlohmann::json stateJson() const;  // mutex_ held
-  std::string newScanId();
+  std::string newScanId(std::chrono::system_clock::time_point now);
 
   ScanServiceOptions options_;
   drivers::BoardProfile profile_;  // as opened (the default scene)
