@@ -78,8 +78,9 @@ struct Request {
   std::string url;
   std::size_t limit = 0;  // body bytes allowed
   std::string body;
-  bool answered = false;   // a response is queued
-  bool streaming = false;  // an event stream: counted when it starts
+  std::optional<Reply> deferred;  // a refusal to answer in the last call
+  bool answered = false;          // a response is queued
+  bool streaming = false;         // an event stream: counted when it starts
   int status = 0;
 };
 
@@ -113,6 +114,7 @@ struct ApiServer {
                     std::size_t* upload_size, void** con_cls);
   MHD_Result begin(MHD_Connection* c, const char* url, Request& r);
   MHD_Result answer(MHD_Connection* c, Request& r, Reply reply);
+  MHD_Result refuse(MHD_Connection* c, Request& r, Reply reply);
   std::optional<Reply> checkAuth(MHD_Connection* c) const;
   Reply dispatch(MHD_Connection* c, Request& r);
   Reply handle(MHD_Connection* c, Request& r);
@@ -372,6 +374,8 @@ MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* met
     return MHD_YES;
   }
   if (r.answered) return MHD_YES;
+  if (r.deferred) return answer(c, r, std::move(*r.deferred));
+  if (r.route.endpoint == http::Endpoint::Events && r.method == "GET") return startEvents(c, r);
   return answer(c, r, dispatch(c, r));
 }
 
@@ -399,6 +403,19 @@ std::optional<Reply> ApiServer::checkAuth(MHD_Connection* c) const {
   return std::nullopt;
 }
 
+// Refusals found in the head are answered at once when a body follows (it
+// is then never read: libmicrohttpd closes the connection after the answer);
+// else with the rest, in the last call, where the connection can be kept
+// alive (an answer queued in the first call always closes it).
+MHD_Result ApiServer::refuse(MHD_Connection* c, Request& r, Reply reply) {
+  const char* length = headerValue(c, MHD_HTTP_HEADER_CONTENT_LENGTH);
+  const bool body_follows = headerValue(c, MHD_HTTP_HEADER_TRANSFER_ENCODING) != nullptr ||
+                            (length != nullptr && std::strcmp(length, "0") != 0);
+  if (body_follows) return answer(c, r, std::move(reply));
+  r.deferred = std::move(reply);
+  return MHD_YES;
+}
+
 MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
   // Request line and headers: libmicrohttpd answers itself when they do not
   // fit its per-connection memory; below that, max_header_bytes applies.
@@ -406,7 +423,7 @@ MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
   MHD_get_connection_values(c, MHD_HEADER_KIND, &sumValue, &head);
   MHD_get_connection_values(c, MHD_GET_ARGUMENT_KIND, &sumValue, &head);
   if (head > options.max_header_bytes) {
-    return answer(c, r,
+    return refuse(c, r,
                   errorReply(431, "request line and headers larger than " +
                                       std::to_string(options.max_header_bytes) + " bytes"));
   }
@@ -414,22 +431,17 @@ MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
   if (r.route.status != 0) {
     Reply reply = errorReply(r.route.status, r.route.error);
     if (r.route.status == 405) reply.headers.emplace_back(MHD_HTTP_HEADER_ALLOW, r.route.allow);
-    return answer(c, r, std::move(reply));
+    return refuse(c, r, std::move(reply));
   }
   if (http::needsToken(r.route.endpoint)) {
-    if (auto refused = checkAuth(c)) return answer(c, r, std::move(*refused));
+    if (auto refused = checkAuth(c)) return refuse(c, r, std::move(*refused));
   }
-  if (r.route.param_status != 0)
-    return answer(c, r, errorReply(r.route.param_status, r.route.error));
-
-  const bool takes_body = (r.route.endpoint == http::Endpoint::Scans && r.method == "POST") ||
-                          (r.route.endpoint == http::Endpoint::Calibration && r.method == "PUT");
-  if (!takes_body) {
-    if (r.route.endpoint == http::Endpoint::Events && r.method == "GET") return startEvents(c, r);
-    return answer(c, r, dispatch(c, r));
+  if (r.route.param_status != 0) {
+    return refuse(c, r, errorReply(r.route.param_status, r.route.error));
   }
-  r.limit = r.route.endpoint == http::Endpoint::Calibration ? options.max_calibration_bytes
-                                                            : options.max_json_bytes;
+  r.limit = r.route.endpoint == http::Endpoint::Calibration && r.method == "PUT"
+                ? options.max_calibration_bytes
+                : options.max_json_bytes;
   // The limit is checked before any byte of the body is read, so the size
   // must be known: a chunked body (no Content-Length) is refused with 411.
   if (headerValue(c, MHD_HTTP_HEADER_TRANSFER_ENCODING) != nullptr) {
@@ -451,7 +463,7 @@ MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
     }
     r.body.reserve(static_cast<std::size_t>(n));
   }
-  return MHD_YES;  // the body comes in the next calls
+  return MHD_YES;  // the body (if any) comes in the next calls, the answer in the last
 }
 
 MHD_Result ApiServer::answer(MHD_Connection* c, Request& r, Reply reply) {

@@ -453,6 +453,31 @@ TEST_F(HttpApiTest, OversizedHeadersAre431) {
   EXPECT_EQ(statusOf(response), 200) << response.substr(0, 200);
 }
 
+TEST_F(HttpApiTest, ConnectionsAreKeptAlive) {
+  start();
+  // Answers, refusals included, leave the connection open for the next request.
+  RawSocket s("127.0.0.1", api->port());
+  ASSERT_TRUE(s.ok());
+  const auto ask = [&](const std::string& path, std::size_t answers) {
+    s.send("GET " + path + " HTTP/1.1\r\nHost: x\r\n\r\n");
+    return s.readUntil([&](const std::string& t) {
+      std::size_t n = 0;
+      for (auto p = t.find("\r\n\r\n{"); p != std::string::npos; p = t.find("\r\n\r\n{", p + 1)) {
+        if (t.find('}', p) != std::string::npos) ++n;
+      }
+      return n >= answers;
+    });
+  };
+  ask("/api/v1/status", 1);
+  ask("/api/v1/scans", 2);  // 401: no token
+  const std::string all = ask("/api/v1/nope", 3);
+  EXPECT_EQ(statusOf(all), 200) << all;
+  EXPECT_NE(all.find("HTTP/1.1 401"), std::string::npos) << all;
+  EXPECT_NE(all.find("HTTP/1.1 404"), std::string::npos) << all;
+  EXPECT_EQ(all.find("Connection: close"), std::string::npos) << all;
+  EXPECT_FALSE(s.closed());
+}
+
 TEST_F(HttpApiTest, BindsOnlyTheConfiguredAddress) {
   start();
   EXPECT_TRUE(RawSocket("127.0.0.1", api->port()).ok());

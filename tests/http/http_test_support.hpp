@@ -10,6 +10,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cctype>
 #include <chrono>
 #include <condition_variable>
@@ -152,7 +153,7 @@ class FakeService : public firmware::HeadService {
       std::lock_guard lock(mutex);
       queues_.push_back(q);
     }
-    if (initial_event) publishTo(*q, "state", json{{"state", "idle"}, {"scan", nullptr}});
+    if (initial_event) publishTo(*q, ++seq_, "state", json{{"state", "idle"}, {"scan", nullptr}});
     return std::make_unique<FakeStream>(q);
   }
   std::string metricsText() const override {
@@ -162,8 +163,9 @@ class FakeService : public firmware::HeadService {
 
   // Events for every live subscriber.
   void publish(const std::string& name, const json& data) {
+    const std::uint64_t seq = ++seq_;  // one id for every stream
     for (const auto& q : live())
-      publishTo(*q, name, data);
+      publishTo(*q, seq, name, data);
   }
   void closeStreams() {
     for (const auto& q : live()) {
@@ -186,14 +188,15 @@ class FakeService : public firmware::HeadService {
     }
     return out;
   }
-  void publishTo(FakeQueue& q, const std::string& name, const json& data) {
+  static void publishTo(FakeQueue& q, std::uint64_t seq, const std::string& name,
+                        const json& data) {
     std::lock_guard lock(q.mutex);
-    q.events.push_back(firmware::HeadEvent{++seq_, name, data});
+    q.events.push_back(firmware::HeadEvent{seq, name, data});
     q.cv.notify_all();
   }
 
   std::vector<std::weak_ptr<FakeQueue>> queues_;
-  std::uint64_t seq_ = 0;
+  std::atomic<std::uint64_t> seq_{0};
 };
 
 // Polls `condition` until it holds or `timeout` passes; whether it held.
