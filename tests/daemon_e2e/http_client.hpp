@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <functional>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -104,6 +105,56 @@ class HttpClient {
     if (rc != CURLE_OK) response.curl_error = curl_easy_strerror(rc);
     curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &response.status);
     return response;
+  }
+
+  // A streamed GET (e.g. server-sent events): `on_data` gets each chunk as it
+  // comes (and "" now and then while nothing comes) and returns false to stop
+  // (the answer then has a curl_error); `timeout` bounds the whole stream.
+  HttpResponse stream(const std::string& path,
+                      const std::function<bool(const std::string&)>& on_data,
+                      std::chrono::milliseconds timeout, const Headers& headers = {}) const {
+    std::unique_ptr<CURL, decltype(&curl_easy_cleanup)> curl(curl_easy_init(), curl_easy_cleanup);
+    if (!curl) throw std::runtime_error("curl_easy_init failed");
+    CURL* c = curl.get();
+    struct Sink {
+      HttpResponse response;
+      const std::function<bool(const std::string&)>* on_data;
+    } sink{HttpResponse{}, &on_data};
+    const std::string url = base_ + path;
+    curl_easy_setopt(c, CURLOPT_URL, url.c_str());
+    curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
+    curl_easy_setopt(c, CURLOPT_TIMEOUT_MS, static_cast<long>(timeout.count()));
+    curl_easy_setopt(c, CURLOPT_PROXY, "");
+    curl_slist* list = nullptr;
+    Headers all = defaults_;
+    all.insert(all.end(), headers.begin(), headers.end());
+    for (const auto& h : all)
+      list = curl_slist_append(list, h.c_str());
+    std::unique_ptr<curl_slist, decltype(&curl_slist_free_all)> list_owner(list,
+                                                                           curl_slist_free_all);
+    curl_easy_setopt(c, CURLOPT_HTTPHEADER, list);
+    curl_easy_setopt(c, CURLOPT_HEADERFUNCTION, &HttpClient::onHeader);
+    curl_easy_setopt(c, CURLOPT_HEADERDATA, &sink.response);
+    curl_easy_setopt(
+        c, CURLOPT_WRITEFUNCTION, +[](char* data, std::size_t size, std::size_t n, void* user) {
+          auto* s = static_cast<Sink*>(user);
+          const std::string chunk(data, size * n);
+          s->response.body += chunk;
+          return (*s->on_data)(chunk) ? size * n : std::size_t{0};
+        });
+    curl_easy_setopt(c, CURLOPT_WRITEDATA, &sink);
+    // Called about once a second even when nothing comes: on_data("") may stop.
+    curl_easy_setopt(c, CURLOPT_NOPROGRESS, 0L);
+    curl_easy_setopt(
+        c, CURLOPT_XFERINFOFUNCTION,
+        +[](void* user, curl_off_t, curl_off_t, curl_off_t, curl_off_t) {
+          return (*static_cast<Sink*>(user)->on_data)(std::string()) ? 0 : 1;
+        });
+    curl_easy_setopt(c, CURLOPT_XFERINFODATA, &sink);
+    const CURLcode rc = curl_easy_perform(c);
+    if (rc != CURLE_OK) sink.response.curl_error = curl_easy_strerror(rc);
+    curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &sink.response.status);
+    return sink.response;
   }
 
   HttpResponse get(const std::string& path, const Headers& headers = {}) const {
