@@ -447,6 +447,13 @@ TEST_F(HttpApiTest, OversizedHeadersAre431) {
   response = raw("GET /api/v1/status HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(100000, 'a') +
                  "\r\nConnection: close\r\n");
   EXPECT_EQ(statusOf(response), 431) << response.substr(0, 200);
+  // The same for a long request line.
+  response = raw("GET /api/v1/status?x=" + std::string(10000, 'a') +
+                 " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n");
+  EXPECT_EQ(statusOf(response), 431) << response.substr(0, 200);
+  response = raw("GET /api/v1/" + std::string(100000, 'a') +
+                 " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n");
+  EXPECT_EQ(statusOf(response), 414) << response.substr(0, 200);
   // Just within the limit is fine.
   response = raw("GET /api/v1/status HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(7000, 'a') +
                  "\r\nConnection: close\r\n");
