@@ -75,6 +75,9 @@ void checkAfterRestart(QuickDaemon& daemon, const std::map<std::string, Recorded
   EXPECT_TRUE(partials(daemon.data()).empty())
       << "a temporary directory is left after the restart:\n"
       << tree(daemon.data());
+  // The installed calibration survives too.
+  EXPECT_TRUE(client.get("/api/v1/calibration/main").body == quickCalibration());
+  EXPECT_EQ(client.get("/api/v1/status").json().at("calibration").value("main", false), true);
   const json list = client.get("/api/v1/scans").json();
   ASSERT_TRUE(list.is_array()) << list.dump() << daemon.stderrTail();
   std::map<std::string, json> listed;
