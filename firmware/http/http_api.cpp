@@ -79,8 +79,9 @@ struct Request {
   std::size_t limit = 0;  // body bytes allowed
   std::string body;
   std::optional<Reply> deferred;  // a refusal to answer in the last call
-  bool answered = false;          // a response is queued
-  bool streaming = false;         // an event stream: counted when it starts
+  bool holds_calibration_upload = false;
+  bool answered = false;   // a response is queued
+  bool streaming = false;  // an event stream: counted when it starts
   int status = 0;
 };
 
@@ -96,6 +97,7 @@ struct ApiServer {
   HeadService& service;
   HttpOptions options;
   http::HttpMetrics metrics;
+  std::atomic<bool> calibration_upload{false};  // a PUT /api/v1/calibration is being read
   MHD_Daemon* daemon = nullptr;
   std::uint16_t bound_port = 0;
 
@@ -461,7 +463,15 @@ MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
           errorReply(413, "request body of " + std::to_string(n) + " bytes is larger than " +
                               std::to_string(r.limit) + " bytes"));
     }
-    r.body.reserve(static_cast<std::size_t>(n));
+    // Memory grows with what arrives, not with what is announced.
+    r.body.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(n, 1u << 20)));
+  }
+  if (r.limit == options.max_calibration_bytes && r.method == "PUT") {
+    // One calibration upload at a time: each may hold max_calibration_bytes.
+    if (calibration_upload.exchange(true)) {
+      return answer(c, r, errorReply(409, "another calibration upload is in progress"));
+    }
+    r.holds_calibration_upload = true;
   }
   return MHD_YES;  // the body (if any) comes in the next calls, the answer in the last
 }
@@ -671,6 +681,7 @@ MHD_Result ApiServer::startEvents(MHD_Connection* c, Request& r) {
 }
 
 void ApiServer::completed(Request& r) {
+  if (r.holds_calibration_upload) calibration_upload = false;
   if (r.answered && !r.streaming) metrics.record(r.status, Clock::now() - r.start);
 }
 

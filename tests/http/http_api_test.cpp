@@ -421,6 +421,23 @@ TEST_F(HttpApiTest, ContentLengthPastTheLimitIs413BeforeTheBody) {
   EXPECT_EQ(service.last_bytes.size(), 1000u);
 }
 
+TEST_F(HttpApiTest, OneCalibrationUploadAtATime) {
+  start();
+  RawSocket first("127.0.0.1", api->port());
+  ASSERT_TRUE(first.ok());
+  first.send("PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\n" + kAuth +
+             "\r\nContent-Length: 10\r\n\r\n12345");
+  // The first is being read: a second one is refused (its body never read).
+  ASSERT_TRUE(test_support::eventually(
+      [&] { return send("PUT", "/api/v1/calibration", "abc").status == 409; }));
+  first.send("67890");
+  EXPECT_EQ(statusOf(first.readHead()), 200);
+  EXPECT_EQ(service.last_bytes, "1234567890");
+  // Done: the next one is taken.
+  EXPECT_EQ(send("PUT", "/api/v1/calibration", "abc").status, 200);
+  EXPECT_EQ(service.last_bytes, "abc");
+}
+
 TEST_F(HttpApiTest, ChunkedBodiesAre411) {
   start();
   // The limit is checked before the body: its size must be known.
