@@ -17,6 +17,7 @@
 #include <cmath>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -286,6 +287,72 @@ TEST(DaemonScan, WithoutCalibrationHasTextureAndPhaseButNoCloud) {
   decodePng(client.get("/api/v1/scans/" + id + "/texture.png"), "texture");
   decodePng(client.get("/api/v1/scans/" + id + "/phase.png"), "phase");
   expectFilesAsListed(client, id, scan);
+  daemon.stop();
+}
+
+TEST(DaemonScan, RequestsAreAnsweredWhileAScanRuns) {
+  QuickDaemon daemon;
+  const HttpClient& client = daemon.client();
+  const std::string id = startScan(client, {{"frames", 200}, {"save_bundle", false}});
+  ASSERT_FALSE(id.empty()) << daemon.stderrTail();
+  // Four clients at once, each asking 25 times: every answer is a 200.
+  std::vector<std::thread> threads;
+  std::vector<int> ok(4, 0);
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      const std::string paths[] = {"/api/v1/status", "/api/v1/scans", "/api/v1/scans/" + id,
+                                   "/metrics"};
+      for (int i = 0; i < 25; ++i)
+        if (client.get(paths[(t + i) % 4]).status == 200) ++ok[t];
+    });
+  }
+  for (auto& th : threads)
+    th.join();
+  const json during = client.get("/api/v1/scans/" + id).json();
+  for (int t = 0; t < 4; ++t)
+    EXPECT_EQ(ok[t], 25) << "client " << t;
+  EXPECT_EQ(finishScan(client, id).value("state", ""), "done")
+      << "the scan was " << during.value("state", "") << " at the end of the requests";
+  daemon.stop();
+}
+
+TEST(DaemonScan, RetentionRemovesTheOldest) {
+  TempDir config_dir;
+  const fs::path config = config_dir.write("cylscan.toml", "[retention]\nmax_scans = 2\n");
+  QuickDaemon daemon(DaemonSetup({"--config", config.string()}));
+  const HttpClient& client = daemon.client();
+  std::vector<std::string> ids;
+  for (int i = 0; i < 3; ++i) {
+    ids.push_back(startScan(client, {{"frames", 5}, {"save_bundle", false}}));
+    ASSERT_FALSE(ids.back().empty()) << daemon.stderrTail();
+    ASSERT_EQ(finishScan(client, ids.back()).value("state", ""), "done");
+  }
+  const json list = client.get("/api/v1/scans").json();
+  ASSERT_EQ(list.size(), 2u) << list.dump();
+  EXPECT_EQ(list[0].value("id", ""), ids[2]);
+  EXPECT_EQ(list[1].value("id", ""), ids[1]);
+  EXPECT_EQ(client.get("/api/v1/scans/" + ids[0]).status, 404);
+  EXPECT_EQ(client.get("/api/v1/scans/" + ids[1] + "/cloud.ply").status, 200);
+  daemon.stop();
+}
+
+TEST(DaemonScan, AnotherSceneOfTheBoard) {
+  QuickDaemon daemon;
+  const HttpClient& client = daemon.client();
+  const std::string id = startScan(
+      client, {{"scene", "isolated_objects.toml"}, {"frames", 10}, {"save_bundle", false}});
+  ASSERT_FALSE(id.empty()) << daemon.stderrTail();
+  const json scan = finishScan(client, id);
+  ASSERT_EQ(scan.value("state", ""), "done") << scan.dump() << daemon.stderrTail();
+  EXPECT_EQ(scan.at("options").value("scene", ""), "isolated_objects.toml");
+  // Not the default scene: far fewer points lie on its sphere and backdrop.
+  const auto ply = client.get("/api/v1/scans/" + id + "/cloud.ply");
+  ASSERT_EQ(ply.status, 200) << ply.describe();
+  const CloudCheck check = checkCloud(formats::readPly(daemon.dir().write("other.ply", ply.body)));
+  std::cout << "[daemon e2e] isolated_objects: " << check.points << " points, " << check.outliers
+            << " off the default scene's surfaces\n";
+  EXPECT_GT(check.points, 1000u);
+  EXPECT_GT(static_cast<double>(check.outliers), 0.5 * static_cast<double>(check.points));
   daemon.stop();
 }
 
