@@ -357,6 +357,14 @@ void ScanService::finishLocked(const json& object) {
 void ScanService::runJob(Job& job) {
   const Request& req = job.request;
   const std::string id = job.id;
+  // Retention once the scan is stored, before it is reported finished.
+  const auto retain = [&] {
+    try {
+      store_.applyRetention(options_.retention, id);
+    } catch (const std::exception& e) {
+      logError(std::string("retention: ") + e.what());
+    }
+  };
   const auto isStopping = [&] {
     std::lock_guard lock(mutex_);
     return stopping_;
@@ -468,6 +476,7 @@ void ScanService::runJob(Job& job) {
     store_.commit(id, object);
     scans_total_.inc("done");
     scan_duration_.observe(object["duration_s"].get<double>());
+    retain();
     std::lock_guard lock(mutex_);
     step_jitter_ = report.step_jitter;
     trigger_jitter_ = report.trigger_jitter;
@@ -496,16 +505,12 @@ void ScanService::runJob(Job& job) {
       store_.discard(id);
     }
     scans_total_.inc("failed");
+    retain();
     std::lock_guard lock(mutex_);
     last_error_ = error;
     events_.publish("error", {{"id", id}, {"error", error}});
     finishLocked(object);
     logError("scan " + id + " failed: " + error);
-  }
-  try {
-    store_.applyRetention(options_.retention, id);
-  } catch (const std::exception& e) {
-    logError(std::string("retention: ") + e.what());
   }
 }
 

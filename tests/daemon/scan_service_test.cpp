@@ -186,7 +186,7 @@ TEST(ScanService, AScanRunsToDoneWithProgressInOrderAndItsFiles) {
 TEST(ScanService, OneScanAtATime) {
   Head head;
   ScanService service(head.options());
-  const std::string id = service.startScan({{"frames", 60}});
+  const std::string id = service.startScan({{"frames", 200}});
   const ServiceError second = errorOf([&] { service.startScan(json::object()); });
   EXPECT_EQ(second.httpStatus(), 409);
   EXPECT_NE(std::string(second.what()).find(id), std::string::npos) << second.what();
@@ -334,6 +334,26 @@ TEST(ScanService, ShutdownDuringAScanAbortsItCleanly) {
   ScanService again(options);
   ASSERT_TRUE(again.scan(id));
   EXPECT_EQ((*again.scan(id))["state"], "failed");
+}
+
+TEST(ScanService, RetentionKeepsTheNewestScans) {
+  Head head;
+  ScanServiceOptions options = head.options();
+  options.retention = {2, 0};
+  ScanService service(options);
+  std::vector<std::string> ids;
+  for (int i = 0; i < 3; ++i) {
+    ids.push_back(service.startScan({{"frames", 3}}));
+    ASSERT_TRUE(service.waitUntilIdle(kScanWait));
+    ASSERT_EQ((*service.scan(ids.back()))["state"], "done");
+  }
+  const json list = service.listScans();
+  ASSERT_EQ(list.size(), 2u) << list.dump();
+  EXPECT_EQ(list[0]["id"], ids[2]);
+  EXPECT_EQ(list[1]["id"], ids[1]);
+  EXPECT_FALSE(service.scan(ids[0]));
+  EXPECT_FALSE(fs::exists(service.store().scansDir() / ids[0]));
+  EXPECT_EQ(service.status()["scans"], 2);
 }
 
 TEST(ScanService, NoRoomOnTheDiskIs507) {
