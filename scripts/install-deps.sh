@@ -19,6 +19,9 @@ PKGS=(
   libgtest-dev libgmock-dev
   libbenchmark-dev
   chromium                 # tests/web: the browser test drives Debian's chromium (no browser download)
+  mmdebstrap               # tests/packaging: the throwaway root the .deb installs into; toolchain/make-sysroot.sh
+  systemd                  # tests/packaging: systemd-analyze verify of the installed unit
+  device-tree-compiler     # tests/packaging: the board overlays (board/rpi*/cylscan-pins-overlay.dts) compile
 )
 # Hardware backends, from bookworm-backports (bookworm's libgpiod is v1, its
 # libcamera 0.0.3): the libgpiod v2 C++ bindings and libcamera 0.3.

@@ -19,28 +19,42 @@ mkdir -p "$db/info" "$db/updates" "$db/triggers"
 : >"$db/status"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-for deb in "$@"; do
-  pkg=$(dpkg-deb -f "$deb" Package)
-  arch=$(dpkg-deb -f "$deb" Architecture)
+# One package: its status stanza and file list to $tmp/<n>.*, shlibs and symbols to info/.
+register() {
+  local deb=$1 n=$2 ctl=$tmp/ctl.$2 pkg arch name
+  mkdir -p "$ctl"
+  dpkg-deb -e "$deb" "$ctl"
+  pkg=$(sed -n 's/^Package: //p' "$ctl/control")
+  arch=$(sed -n 's/^Architecture: //p' "$ctl/control")
   name=$pkg
-  if [ "$(dpkg-deb -f "$deb" Multi-Arch)" = same ]; then name=$pkg:$arch; fi
+  if grep -qx 'Multi-Arch: same' "$ctl/control"; then name=$pkg:$arch; fi
   {
     echo "Package: $pkg"
     echo "Status: install ok installed"
-    dpkg-deb -f "$deb" | grep -v '^Package:'
+    grep -v '^Package:' "$ctl/control"
     echo
-  } >>"$db/status"
+  } >"$tmp/$n.status"
+  echo "$arch" >"$tmp/$n.arch"
   dpkg-deb --fsys-tarfile "$deb" | tar -t | sed -e 's|^\./|/|' -e 's|/$||' -e '/^$/d' \
     -e "s|^|$sysroot|" >"$db/info/$name.list"
-  rm -rf "${tmp:?}"/*
-  dpkg-deb -e "$deb" "$tmp"
   for f in shlibs symbols; do
-    if [ -f "$tmp/$f" ]; then cp "$tmp/$f" "$db/info/$name.$f"; fi
+    if [ -f "$ctl/$f" ]; then cp "$ctl/$f" "$db/info/$name.$f"; fi
   done
-done
+  rm -rf "$ctl"
+}
+export -f register
+export tmp db sysroot
+# Two at a time: the time goes into decompressing each package's data.
+i=0
+for deb in "$@"; do
+  i=$((i + 1))
+  printf '%s\0%s\0' "$deb" "$i"
+done | xargs -0 -n2 -P"$(nproc)" bash -c 'register "$1" "$2"' _ # (the quoted $1 $2 are bash -c's)
+for ((i = 1; i <= $#; i++)); do cat "$tmp/$i.status"; done >"$db/status"
+
 # The database's architectures: dpkg-query treats the target's as foreign.
 {
   dpkg --print-architecture
-  for deb in "$@"; do dpkg-deb -f "$deb" Architecture; done | sort -u | grep -vx all
+  cat "$tmp"/*.arch | sort -u | grep -vx all
 } | awk '!seen[$0]++' >"$db/arch"
 echo "sysroot-dpkg-db: $# packages registered in $db"

@@ -1,0 +1,79 @@
+# Install rules for what the package puts on the target besides the programs
+# (board profiles, the root filesystem overlay) and the CPack configuration of
+# the Debian package cylscan_<version>_<arch>.deb:
+#   cmake --build BUILD && (cd BUILD && cpack -G DEB)
+# The programs install themselves (tools/, firmware/daemon/, web/). Paths
+# follow the package's layout, prefix /usr: the overlay's files (unit, udev
+# rules, tmpfiles, sysusers, /etc/cylscan/cylscan.toml) go to the absolute
+# system paths systemd and udev read, whatever the prefix.
+include(GNUInstallDirs)
+
+# Board profiles: /usr/share/cylscan/board/<name>/ (board.toml, README, overlays, sim's head and scenes).
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/board/ DESTINATION ${CMAKE_INSTALL_DATADIR}/cylscan/board)
+# The overlay, mirrored from rootfs-overlay/ onto /.
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/rootfs-overlay/ DESTINATION /
+        PATTERN README.md EXCLUDE)
+install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
+
+set(CPACK_GENERATOR DEB)
+set(CPACK_PACKAGE_NAME cylscan)
+set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
+set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "${PROJECT_DESCRIPTION}")
+set(CPACK_PACKAGE_DESCRIPTION
+    "cylscan drives a 360-degree fringe-projection 3D scanning head (a cylindrical\n"
+    "projector on a stepper rotation stage, triggered cameras) on embedded Linux:\n"
+    "the cylscan command line, the cylscand daemon with its HTTP API and web page,\n"
+    "board profiles (virtual head, Raspberry Pi 4/5, generic arm64, emulated board)\n"
+    "and a hardened systemd unit.")
+string(REPLACE ";" "" CPACK_PACKAGE_DESCRIPTION "${CPACK_PACKAGE_DESCRIPTION}")
+set(CYLSCAN_PACKAGE_MAINTAINER "cylscan maintainers <cylscan@localhost>"
+    CACHE STRING "Maintainer field of the Debian package")
+set(CPACK_PACKAGE_CONTACT "${CYLSCAN_PACKAGE_MAINTAINER}")
+set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
+set(CPACK_STRIP_FILES ON)
+
+# The Debian architecture of the target (a cross build packages for its target).
+if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
+  set(cylscan_deb_arch arm64)
+elseif(CMAKE_SYSTEM_PROCESSOR MATCHES "^arm")
+  set(cylscan_deb_arch armhf)
+elseif(CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64|amd64)$")
+  set(cylscan_deb_arch amd64)
+else()
+  execute_process(COMMAND dpkg --print-architecture OUTPUT_VARIABLE cylscan_deb_arch
+                  OUTPUT_STRIP_TRAILING_WHITESPACE)
+endif()
+set(CPACK_DEBIAN_PACKAGE_ARCHITECTURE ${cylscan_deb_arch})
+set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)  # cylscan_<version>_<arch>.deb
+set(CPACK_DEBIAN_PACKAGE_SECTION misc)
+set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
+set(CPACK_DEBIAN_PACKAGE_HOMEPAGE "")
+
+# Depends: what the binaries link, from dpkg-shlibdeps, plus what the
+# maintainer scripts run (groupadd/useradd). A cross build reads the target's
+# libraries and their packages' shlibs/symbols files from its sysroot.
+set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+if(CMAKE_CROSSCOMPILING)
+  if(NOT CYLSCAN_SYSROOT OR NOT EXISTS "${CYLSCAN_SYSROOT}/.cylscan-dpkg/status")
+    message(FATAL_ERROR "A cross package reads its Depends from the sysroot's dpkg database, and "
+                        "${CYLSCAN_SYSROOT} has none: remake it with toolchain/make-sysroot.sh.")
+  endif()
+  # dpkg-shlibdeps finds the target's libraries in the sysroot, objdumps them
+  # with the target's binutils (DEB_HOST_ARCH) and maps them to packages with
+  # the database toolchain/sysroot-dpkg-db.sh made (DPKG_ADMINDIR): set in
+  # cpack's environment by packaging/cpack-project-config.cmake.
+  set(CPACK_CYLSCAN_SYSROOT "${CYLSCAN_SYSROOT}")
+  set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS_PRIVATE_DIRS
+      "${CYLSCAN_SYSROOT}/lib/${CMAKE_LIBRARY_ARCHITECTURE}"
+      "${CYLSCAN_SYSROOT}/usr/lib/${CMAKE_LIBRARY_ARCHITECTURE}")
+  set(CPACK_PROJECT_CONFIG_FILE "${PROJECT_SOURCE_DIR}/packaging/cpack-project-config.cmake")
+endif()
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "passwd")
+set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "systemd, udev")
+set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
+    ${PROJECT_SOURCE_DIR}/packaging/debian/postinst
+    ${PROJECT_SOURCE_DIR}/packaging/debian/prerm
+    ${PROJECT_SOURCE_DIR}/packaging/debian/postrm
+    ${PROJECT_SOURCE_DIR}/packaging/debian/conffiles)
+set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
+include(CPack)
