@@ -104,7 +104,7 @@ class HeadService {
 
 // The files a scan may have, as the API names them.
 inline constexpr std::string_view kScanFileNames[] = {"cloud.ply", "depth.tiff", "texture.png",
-                                                       "phase.png", "depth.png", "scan.json"};
+                                                      "phase.png", "depth.png",  "scan.json"};
 
 // Scan ids are what the service makes (e.g. "20261201-160102-3f9a"):
 // [0-9a-z-], 1..64 characters, not starting with '-' or '.'. Everything
