@@ -191,6 +191,21 @@ TEST_F(DaemonErrors, BadCalibrationLeavesTheInstalledOneUnchanged) {
   EXPECT_TRUE(client().get("/api/v1/calibration/main").body == good);
 }
 
+// One upload at a time (409) means concurrent ones: a client that waits for
+// each answer before the next upload is never refused.
+TEST_F(DaemonErrors, SequentialCalibrationUploadsAreNeverRefusedAsBusy) {
+  int busy = 0;
+  for (int i = 0; i < 8; ++i) {
+    const bool good = i % 2 == 0;
+    const auto r = client().put("/api/v1/calibration",
+                                good ? quickCalibration() : std::string("not a calibration"));
+    EXPECT_EQ(r.status, good ? 200 : 400) << "upload " << i << ": " << r.describe();
+    if (r.status == 409) ++busy;
+  }
+  EXPECT_EQ(busy, 0) << "sequential uploads answered 409 (busy)";
+  EXPECT_TRUE(client().get("/api/v1/calibration/main").body == quickCalibration());
+}
+
 TEST_F(DaemonErrors, LimitsAndMethods) {
   // A JSON body over 64 KiB: 413, no scan.
   const std::string huge =
