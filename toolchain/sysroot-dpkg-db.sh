@@ -17,6 +17,7 @@ db=$sysroot/.cylscan-dpkg
 rm -rf "$db"
 mkdir -p "$db/info" "$db/updates" "$db/triggers"
 : >"$db/status"
+echo 1 >"$db/info/format" # multiarch file names (pkg:arch.list for Multi-Arch: same)
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 # One package: its status stanza and file list to $tmp/<n>.*, shlibs and symbols to info/.
