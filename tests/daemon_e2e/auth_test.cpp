@@ -102,6 +102,24 @@ TEST(DaemonAuth, TokenRequiredWhenConfigured) {
   daemon.stop();
 }
 
+// allow_loopback_without_token: the tests' client is on 127.0.0.1, so it
+// needs no token for any request.
+TEST(DaemonAuth, LoopbackWithoutTokenWhenTheConfigSaysSo) {
+  TempDir config_dir;
+  const fs::path config =
+      config_dir.write("cylscan.toml", "[daemon]\ntoken = \"" + kToken +
+                                           "\"\nallow_loopback_without_token = true\n");
+  QuickDaemon daemon(DaemonSetup({"--config", config.string()}, /*calibrate=*/false));
+  const HttpClient& client = daemon.client();
+  EXPECT_EQ(client.put("/api/v1/calibration", quickCalibration()).status, 200);
+  EXPECT_EQ(client.get("/api/v1/scans").status, 200);
+  const std::string id = startScan(client, {{"frames", 5}, {"save_bundle", false}});
+  ASSERT_FALSE(id.empty()) << daemon.stderrTail();
+  EXPECT_EQ(finishScan(client, id).value("state", ""), "done");
+  EXPECT_EQ(client.del("/api/v1/scans/" + id).status, 204);
+  daemon.stop();
+}
+
 TEST(DaemonAuth, NoTokenConfiguredNeedsNone) {
   QuickDaemon daemon(DaemonSetup({}, /*calibrate=*/false));
   EXPECT_EQ(daemon.client().get("/api/v1/scans").status, 200);
