@@ -5,6 +5,7 @@
 // {"error": "…"} body.
 #include <algorithm>
 #include <cctype>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -243,6 +244,41 @@ TEST(DaemonLimits, CalibrationOverTheConfiguredLimitIs413) {
   const auto r = daemon.client().put("/api/v1/calibration", quickCalibration().substr(0, 200000));
   expectError(r, {413}, "200 kB calibration over a 64 KiB limit");
   EXPECT_EQ(daemon.client().get("/api/v1/calibration/main").status, 404);
+  daemon.stop();
+}
+
+// The data directory on a 1 MiB file system (a tmpfs in a mount namespace of
+// the daemon's own): one scan's outputs (~36 bytes a pixel, 2.9 MB at
+// 320×256) do not fit, so the scan is refused before it starts.
+TEST(DaemonLimits, NoRoomOnTheDiskIs507) {
+  const fs::path unshare = "/usr/bin/unshare";
+  TempDir probe;
+  const bool can_mount =
+      fs::exists(unshare) &&
+      std::system(("/usr/bin/unshare --mount --propagation private /bin/sh -c 'mount -t tmpfs "
+                   "-o size=1m tmpfs " +
+                   probe.path().string() + "' >/dev/null 2>&1")
+                      .c_str()) == 0;
+  if (!can_mount) GTEST_SKIP() << "no permission to mount a tmpfs in a mount namespace";
+  DaemonSetup setup({}, /*calibrate=*/false);
+  // Mount over the daemon's data directory, then run cylscand there.
+  setup.wrapper = {unshare.string(),
+                   "--mount",
+                   "--propagation",
+                   "private",
+                   "/bin/sh",
+                   "-c",
+                   "mount -t tmpfs -o size=1m tmpfs \"$0\" && exec \"$@\"",
+                   "{data}"};
+  QuickDaemon daemon(std::move(setup));
+  const HttpClient& client = daemon.client();
+  const json status = client.get("/api/v1/status").json();
+  EXPECT_LT(status.value("disk_free_bytes", std::uint64_t{1} << 40), 2u * 1024 * 1024)
+      << status.dump();
+  const auto r = client.postJson("/api/v1/scans", {{"save_bundle", false}});
+  expectError(r, {507}, "a scan on a 1 MiB disk");
+  EXPECT_EQ(client.get("/api/v1/scans").json().size(), 0u);
+  EXPECT_EQ(client.get("/api/v1/status").json().value("state", ""), "idle");
   daemon.stop();
 }
 

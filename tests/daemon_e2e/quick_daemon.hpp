@@ -55,6 +55,10 @@ struct DaemonSetup {
   std::vector<std::string> extra_args;  // e.g. {"--token", "…"}
   bool install_calibration = true;      // PUT the fixture's calib.bin after the start
   std::string token;                    // sent by the client when installing the calibration
+  // A program that runs cylscand (its path and the daemon's arguments follow
+  // these), e.g. unshare to give it a small file system; an argument "{data}"
+  // is replaced by the data directory.
+  std::vector<std::string> wrapper;
 };
 
 // One daemon: `data` is its data directory (kept across restart()).
@@ -99,8 +103,17 @@ class QuickDaemon {
   // A new process on the same data directory (the old one must be stopped).
   void start() {
     ++starts_;
-    process_ = std::make_unique<DaemonProcess>(
-        args(), dir_.path() / ("stderr-" + std::to_string(starts_) + ".txt"));
+    const fs::path log = dir_.path() / ("stderr-" + std::to_string(starts_) + ".txt");
+    if (setup_.wrapper.empty()) {
+      process_ = std::make_unique<DaemonProcess>(args(), log);
+    } else {
+      std::vector<std::string> a(setup_.wrapper.begin() + 1, setup_.wrapper.end());
+      std::replace(a.begin(), a.end(), std::string("{data}"), data().string());
+      a.push_back(kDaemonProgram.string());
+      const auto own = args();
+      a.insert(a.end(), own.begin(), own.end());
+      process_ = std::make_unique<DaemonProcess>(a, log, setup_.wrapper.front());
+    }
     client_ = std::make_unique<HttpClient>(process_->waitListening());
   }
 
