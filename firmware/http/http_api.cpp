@@ -477,6 +477,14 @@ MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
 }
 
 MHD_Result ApiServer::answer(MHD_Connection* c, Request& r, Reply reply) {
+  // The upload is over once it is answered: the next upload, sent as soon as
+  // the client has this answer, must not find the slot still taken (the
+  // completion callback runs only after the client has the answer).
+  if (r.holds_calibration_upload) {
+    std::string().swap(r.body);
+    r.holds_calibration_upload = false;
+    calibration_upload = false;
+  }
   MHD_Response* response = nullptr;
   if (reply.file) {
     const std::uint64_t size = reply.file->size();
