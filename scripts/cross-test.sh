@@ -10,9 +10,12 @@
 #    (cmake --preset <arch>), the last compared with the host's digests;
 # 5. runs them with ctest (labels algo, formats, bit_identity) under
 #    qemu-user -L <sysroot> and prints its summary.
+# 6. with CROSS_PACKAGE=1, also builds the target's package (programs, page;
+#    no tests) in <CROSS_BUILD_DIR>-package and checks its architecture and
+#    that its Depends came from the target's libraries.
 # Environment: CROSS_BUILD_DIR (default build/cross-<arch>), HOST_BUILD_DIR
 # (build/cross-host), CROSS_TEST_LABELS (default 'algo|formats|bit_identity'),
-# CROSS_TEST_TARGETS (extra targets to build, e.g. "backends_tests").
+# CROSS_TEST_TARGETS (extra targets to build, e.g. "backends_tests"), CROSS_PACKAGE.
 set -euo pipefail
 # shellcheck disable=SC2317 # the build steps are functions run through `timed`
 
@@ -27,6 +30,8 @@ sysroot=$root/build/sysroot-$arch
 cross_dir=${CROSS_BUILD_DIR:-build/cross-$arch}
 host_dir=${HOST_BUILD_DIR:-build/cross-host}
 labels=${CROSS_TEST_LABELS:-algo|formats|bit_identity}
+cross_dir=$(realpath -m "$cross_dir")
+host_dir=$(realpath -m "$host_dir")
 launcher=()
 if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
 
@@ -55,7 +60,7 @@ host_build() {
   "$host_dir/tests/packaging/cylscan_bit_identity" >"$host_dir/bit-identity-host.txt"
 }
 timed host host_build
-reference=$(cd "$host_dir" && pwd)/bit-identity-host.txt
+reference=$host_dir/bit-identity-host.txt
 
 step "cross build ($cross_dir)"
 cross_build() {
@@ -76,7 +81,25 @@ rc=0
 timed tests ctest --test-dir "$cross_dir" -L "$labels" -j"$(nproc)" --output-on-failure \
   --no-tests=error || rc=$?
 
-printf '\ncross-test %s: install %ss, sysroot %ss, host reference %ss, cross build %ss, tests %ss; total %ss\n' \
+if [ "${CROSS_PACKAGE:-0}" = 1 ]; then
+  step "package"
+  cross_package() {
+    local dir=$cross_dir-package debarch=arm64 deb depends
+    if [ "$arch" = armhf ]; then debarch=armhf; fi
+    cmake --preset "$arch" -B "$dir" "${launcher[@]}" -DCYLSCAN_SYSROOT="$sysroot" \
+      -DCYLSCAN_BUILD_TESTS=OFF >/dev/null
+    cmake --build "$dir" -j"$(nproc)"
+    (cd "$dir" && cpack -G DEB -B "$dir/package") | tail -n 2
+    deb=$(ls "$dir"/package/cylscan_*_"$debarch".deb)
+    depends=$(dpkg-deb -f "$deb" Depends)
+    echo "$deb: Depends: $depends"
+    [ "$(dpkg-deb -f "$deb" Architecture)" = "$debarch" ] &&
+      grep -q "libc6 (>=" <<<"$depends" && grep -q "libopencv-core406" <<<"$depends"
+  }
+  timed package cross_package || rc=1
+fi
+
+printf '\ncross-test %s: install %ss, sysroot %ss, host reference %ss, cross build %ss, tests %ss%s; total %ss\n' \
   "$arch" "${took[install]}" "${took[sysroot]}" "${took[host]}" "${took[build]}" \
-  "${took[tests]:-?}" $((SECONDS - t0))
+  "${took[tests]:-?}" "${took[package]:+, package ${took[package]}s}" $((SECONDS - t0))
 exit "$rc"
