@@ -170,6 +170,7 @@ check "postinst: $data owned by cylscan, mode 750" test "$(chroot "$root" stat -
 check "postinst: the unit is enabled" test -L "$root/etc/systemd/system/multi-user.target.wants/cylscand.service"
 check "the programs find their libraries in the root" bash -c "chroot '$root' ldd $exec_bin /usr/bin/cylscan | grep -q 'not found' && exit 1 || exit 0"
 check "cylscan --version runs in the root" chroot "$root" /usr/bin/cylscan --version
+check "$exec_bin --version runs in the root" chroot "$root" "$exec_bin" --version
 check "systemd-analyze verify of the installed unit" systemd-analyze verify --root="$root" cylscand.service
 
 phase "remove and purge"
