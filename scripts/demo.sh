@@ -1,32 +1,80 @@
 #!/usr/bin/env bash
-# The main job: install, build, and run the paper's whole method on the
-# virtual head: render a dataset (checkerboards, calibration planes, test
-# scans), calibrate the stereo pair, quasi-calibrate the main camera, then
-# reconstruct a 50 mm sphere from one camera and measure it as the paper does.
+# The main job: install, build, calibrate the virtual head the way the paper
+# calibrates a real one, then start the daemon cylscand on it with the
+# calibration installed, so that http://127.0.0.1:8080 shows the head's page
+# and can scan its default scene (the 50 mm reference sphere before a plane).
+#
+#   bash scripts/demo.sh            # serve until Ctrl-C
+#   bash scripts/demo.sh --once     # one scan through the API, then stop
+#
+# The calibration (simulate, calibrate-stereo, calibrate: a few minutes at the
+# head's full 1000x800) is kept in out/demo and reused by later runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+once=0
+if [ "${1:-}" = "--once" ]; then once=1; shift; fi
+out=${1:-out/demo}
+listen=${CYLSCAN_LISTEN:-127.0.0.1:8080}
+
 bash scripts/install-deps.sh
 cmake --preset default >/dev/null
-cmake --build --preset default -j "$(nproc)" --target cylscan
-cylscan=./build/default/tools/cylscan
-out=${1:-out/demo}
-rm -rf "$out"
+targets=(cylscan cylscand)
+# The page is bundled from npm (target web) when npm is there.
+if cmake --build --preset default --target help | grep -q '^web:'; then targets+=(web); fi
+cmake --build --preset default -j "$(nproc)" --target "${targets[@]}"
+bin=./build/default
+cylscan=$bin/tools/cylscan
+cylscand=$bin/firmware/daemon/cylscand
 mkdir -p "$out"
 data="$out/dataset"
 
-echo "== simulate: the virtual head renders the dataset (spec §6)"
-$cylscan simulate --out "$data" --boards 40
-echo "== calibrate-stereo"
-$cylscan calibrate-stereo --board "$data/board" --out "$out/stereo.yaml"
-echo "== calibrate (quasi-calibration from $(ls "$data/calib" | wc -l) plane poses)"
-$cylscan calibrate --stereo "$out/stereo.yaml" --out "$out/calib.bin" "$data"/calib/pose*
-echo "== phase of the first sphere scan"
-$cylscan phase --out "$out/phase" "$data/test/sphere_1"
-echo "== reconstruct it from the main camera alone"
-$cylscan reconstruct --calib "$out/calib.bin" --out "$out/sphere_1.ply" \
-  --depth "$out/sphere_1_depth.tiff" "$data/test/sphere_1"
-echo "== evaluate: the paper's sphere metrics (truth: radius 50 mm)"
-$cylscan evaluate sphere --radius 50 "$out/sphere_1.ply"
-echo "== scan: the firmware's acquisition loop on the virtual head (board/sim), reconstructing on the fly"
-$cylscan scan --board board/sim --out "$out/scan" --calib "$out/calib.bin" --cloud "$out/scan.ply"
-echo "demo: results in $out (phase maps in $out/phase, clouds $out/sphere_1.ply and $out/scan.ply)"
+if [ ! -f "$out/calib.bin" ]; then
+  echo "== simulate: the virtual head renders its calibration data (spec §6)"
+  rm -rf "$data"
+  $cylscan simulate --out "$data" --boards 40
+  echo "== calibrate-stereo: the checkerboard pairs of the main and aux cameras"
+  $cylscan calibrate-stereo --board "$data/board" --out "$out/stereo.yaml"
+  echo "== calibrate: quasi-calibration from $(ls "$data/calib" | wc -l) plane poses"
+  $cylscan calibrate --stereo "$out/stereo.yaml" --out "$out/calib.tmp" "$data"/calib/pose*
+  mv "$out/calib.tmp" "$out/calib.bin"
+  echo "== the paper's method offline: reconstruct a 50 mm sphere from the main camera alone"
+  $cylscan reconstruct --calib "$out/calib.bin" --out "$out/sphere_1.ply" "$data/test/sphere_1"
+  $cylscan evaluate sphere --radius 50 "$out/sphere_1.ply"
+fi
+
+echo "== cylscand on the virtual head (board/sim), data in $out/data"
+log="$out/cylscand.log"
+coproc DAEMON { exec "$cylscand" --board board/sim --listen "$listen" --data "$out/data" 2>"$log"; }
+daemon_pid=$DAEMON_PID
+trap 'kill -TERM "$daemon_pid" 2>/dev/null || true; wait "$daemon_pid" 2>/dev/null || true' EXIT
+if ! read -r -t 30 line <&"${DAEMON[0]}"; then
+  echo "cylscand did not start; its log ($log):" >&2
+  cat "$log" >&2
+  exit 1
+fi
+echo "$line"
+url=${line#*listening on }
+url=${url%% *}
+echo "== install the calibration: PUT $url/api/v1/calibration"
+curl -sS --fail-with-body -X PUT --data-binary @"$out/calib.bin" \
+  -H 'Content-Type: application/octet-stream' "$url/api/v1/calibration"
+echo
+
+if [ "$once" -eq 1 ]; then
+  echo "== one scan through the API"
+  id=$(curl -sS --fail-with-body -X POST "$url/api/v1/scans" | sed -n 's/.*"id":"\([^"]*\)".*/\1/p')
+  for _ in $(seq 1 600); do
+    scan=$(curl -sS --fail-with-body "$url/api/v1/scans/$id")
+    case "$scan" in
+      *'"state":"done"'* | *'"state":"failed"'*) break ;;
+    esac
+    sleep 0.5
+  done
+  echo "$scan"
+  case "$scan" in *'"state":"done"'*) ;; *) exit 1 ;; esac
+  curl -sS --fail-with-body -o "$out/scan.ply" "$url/api/v1/scans/$id/cloud.ply"
+  echo "demo: scan $id -> $out/scan.ply"
+  exit 0
+fi
+echo "demo: open $url in a browser (Ctrl-C stops the daemon)"
+wait "$daemon_pid"

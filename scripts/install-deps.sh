@@ -7,7 +7,7 @@ if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
 export DEBIAN_FRONTEND=noninteractive
 
 PKGS=(
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git curl
   libopencv-dev            # imgcodecs (PNG/TIFF), imgproc, calib3d
   libeigen3-dev            # small dense solvers
   nlohmann-json3-dev       # capture.json, --json output
@@ -22,6 +22,8 @@ PKGS=(
   mmdebstrap               # tests/packaging: the throwaway root the .deb installs into; toolchain/make-sysroot.sh
   systemd                  # tests/packaging: systemd-analyze verify of the installed unit
   device-tree-compiler     # tests/packaging: the board overlays (board/rpi*/cylscan-pins-overlay.dts) compile
+  cppcheck clang-tidy      # scripts/lint.sh: the static analysis CI runs (cppcheck 2.10, clang-tidy 14)
+  clang libclang-rt-14-dev # scripts/fuzz.sh: the fuzz targets are built with clang, libFuzzer and its sanitizers
 )
 # Hardware backends, from bookworm-backports (bookworm's libgpiod is v1, its
 # libcamera 0.0.3): the libgpiod v2 C++ bindings and libcamera 0.3.
