@@ -179,6 +179,10 @@ StereoCalibration readStereoCalibration(const fs::path& file) {
     while (!detail.empty() && (detail.back() == '\n' || detail.back() == ' '))
       detail.pop_back();
     throw InputError(file, "not a valid OpenCV FileStorage YAML file (" + detail + ")");
+  } catch (const std::exception& e) {
+    // Some faults escape OpenCV's parser as std::length_error and the like.
+    throw InputError(file,
+                     std::string("not a valid OpenCV FileStorage YAML file (") + e.what() + ")");
   }
   if (!storage.isOpened()) throw InputError(file, "not a valid OpenCV FileStorage YAML file");
 

@@ -208,6 +208,15 @@ TEST_F(StereoCalibrationTest, GarbageFile) {
                                {"not a valid OpenCV FileStorage"}));
 }
 
+// Found by fuzz/fuzz_stereo_yaml: for some malformed documents, such as this
+// one, OpenCV 4.6's YAML parser throws std::length_error, not cv::Exception.
+// It is bad input like any other.
+TEST_F(StereoCalibrationTest, ParserFaultThatIsNotACvException) {
+  writeText(file(), "%YAML:1.\n r:3\n :");
+  EXPECT_TRUE(throwsInputError([&] { readStereoCalibration(file()); }, file(),
+                               {"not a valid OpenCV FileStorage"}));
+}
+
 TEST_F(StereoCalibrationTest, TopLevelIsAList) {
   writeText(file(), "%YAML:1.0\n---\n- 1\n- 2\n");
   EXPECT_TRUE(
