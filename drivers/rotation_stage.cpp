@@ -97,6 +97,9 @@ void RotationStage::disable() {
 }
 
 void RotationStage::fail(const std::string& message) {
+  // A move that ended in a fault or an abort may have lost steps: the
+  // position is no longer known, so the next user homes again.
+  homed_ = false;
   std::string text = "rotation stage: " + message;
   try {
     disable();

@@ -41,6 +41,50 @@ class SafeState {
   drivers::OutputLine& light_;
 };
 
+// An output line that remembers the level it was last set to (one relaxed
+// atomic store: still no allocation, no lock on the real-time path).
+class MonitoredLine final : public drivers::OutputLine {
+ public:
+  MonitoredLine(std::unique_ptr<drivers::OutputLine> line, bool initial, std::atomic<bool>& level)
+      : line_(std::move(line)), level_(level) {
+    level_.store(initial, std::memory_order_relaxed);
+  }
+  void set(bool active) override {
+    line_->set(active);
+    level_.store(active, std::memory_order_relaxed);
+  }
+
+ private:
+  std::unique_ptr<drivers::OutputLine> line_;
+  std::atomic<bool>& level_;
+};
+
+bool sameLine(const drivers::LineSpec& a, const drivers::LineSpec& b) {
+  return a.name == b.name && a.chip == b.chip && a.offset == b.offset;
+}
+
+// The board's GPIO with one output line monitored (the stage driver's enable
+// line, which drivers::RotationStage requests itself).
+class MonitoringGpio final : public drivers::GpioBackend {
+ public:
+  MonitoringGpio(drivers::GpioBackend& gpio, drivers::LineSpec watched, std::atomic<bool>& level)
+      : gpio_(gpio), watched_(std::move(watched)), level_(level) {}
+  std::unique_ptr<drivers::OutputLine> requestOutput(const drivers::LineSpec& spec,
+                                                     bool initial_active) override {
+    auto line = gpio_.requestOutput(spec, initial_active);
+    if (!sameLine(spec, watched_)) return line;
+    return std::make_unique<MonitoredLine>(std::move(line), initial_active, level_);
+  }
+  std::unique_ptr<drivers::InputLine> requestInput(const drivers::LineSpec& spec) override {
+    return gpio_.requestInput(spec);
+  }
+
+ private:
+  drivers::GpioBackend& gpio_;
+  drivers::LineSpec watched_;
+  std::atomic<bool>& level_;
+};
+
 // Stops the cameras of a scan however it ends.
 class RunningCameras {
  public:
@@ -105,9 +149,11 @@ Acquisition::Acquisition(drivers::Board& board) : board_(board) {
   specs.enable = profile.gpio.enable;
   specs.home = profile.gpio.home;
   specs.fault = profile.gpio.fault;
-  stage_ =
-      std::make_unique<drivers::RotationStage>(profile.stage, board.clock(), board.gpio(), specs);
-  light_ = board.gpio().requestOutput(profile.gpio.light, false);
+  MonitoringGpio gpio(board.gpio(), profile.gpio.enable, enable_level_);
+  stage_ = std::make_unique<drivers::RotationStage>(profile.stage, board.clock(), gpio, specs);
+  light_ = std::make_unique<MonitoredLine>(board.gpio().requestOutput(profile.gpio.light, false),
+                                           false, light_level_);
+  publishStage();
   std::set<std::string> lines;
   for (const auto& camera : profile.cameras) {
     if (camera.config.trigger != drivers::TriggerMode::GpioPulse) continue;
@@ -124,6 +170,20 @@ Acquisition::Acquisition(drivers::Board& board) : board_(board) {
 Acquisition::~Acquisition() {
   light_->set(false);
   stage_->disable();
+}
+
+HeadOutputs Acquisition::outputs() const {
+  HeadOutputs o;
+  o.stage_enabled = enable_level_.load(std::memory_order_relaxed);
+  o.light = light_level_.load(std::memory_order_relaxed);
+  o.homed = homed_.load(std::memory_order_acquire);
+  o.position_deg = position_deg_.load(std::memory_order_acquire);
+  return o;
+}
+
+void Acquisition::publishStage() {
+  homed_.store(stage_->homed(), std::memory_order_release);
+  position_deg_.store(stage_->angleDeg(), std::memory_order_release);
 }
 
 void Acquisition::abort() noexcept {
@@ -311,6 +371,10 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
 ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink,
                             const std::function<void(const ScanProgress&)>& progress) {
   abort_.store(false, std::memory_order_release);
+  struct Publish {  // the stage's state when the scan ends, however it ends
+    Acquisition& acquisition;
+    ~Publish() { acquisition.publishStage(); }
+  } publish{*this};
   if (options.cameras.empty()) throw std::invalid_argument("scan: no camera to capture");
   trigger_.clearSoftwareCameras();
   for (const auto& name : options.cameras) {

@@ -62,6 +62,16 @@ struct ScanReport {
   drivers::JitterStats::Snapshot step_jitter, trigger_jitter;
 };
 
+// What the firmware last drove on the head's outputs (the stage driver's
+// enable line, the light line) and the stage's state when it last stopped
+// (homed, position), for the daemon's status. Read from any thread.
+struct HeadOutputs {
+  bool stage_enabled = false;
+  bool light = false;
+  bool homed = false;
+  double position_deg = 0.0;  // as the stage counts it (from home when homed)
+};
+
 class Acquisition {
  public:
   // Requests the stage, light and trigger lines of the board's profile
@@ -82,13 +92,23 @@ class Acquisition {
 
   const drivers::RotationStage& stage() const { return *stage_; }
 
+  // From any thread: the outputs' levels as set (every set() is seen at
+  // once); homed and position are updated when a scan ends.
+  HeadOutputs outputs() const;
+
  private:
+  void publishStage();
   struct Shared;
   void motion(const ScanOptions& options, const ScanPlan& plan, Shared& shared);
   void capture(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink, Shared& shared,
                const std::function<void(const ScanProgress&)>& progress, ScanReport& report);
 
   drivers::Board& board_;
+  // Declared before the lines that write them.
+  std::atomic<bool> enable_level_{false};
+  std::atomic<bool> light_level_{false};
+  std::atomic<bool> homed_{false};
+  std::atomic<double> position_deg_{0.0};
   std::unique_ptr<drivers::RotationStage> stage_;
   std::unique_ptr<drivers::OutputLine> light_;
   TriggerFanout trigger_;

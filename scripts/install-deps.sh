@@ -23,6 +23,7 @@ PKGS=(
   systemd                  # tests/packaging: systemd-analyze verify of the installed unit
   device-tree-compiler     # tests/packaging: the board overlays (board/rpi*/cylscan-pins-overlay.dts) compile
   cppcheck clang-tidy      # scripts/lint.sh: the static analysis CI runs (cppcheck 2.10, clang-tidy 14)
+  wrk                      # tests/load: the HTTP load generator of the daemon's load test
   clang libclang-rt-14-dev # scripts/fuzz.sh: the fuzz targets are built with clang, libFuzzer and its sanitizers
 )
 # Hardware backends, from bookworm-backports (bookworm's libgpiod is v1, its

@@ -49,6 +49,9 @@ void validate(const HeadConfig& c) {
       main.rotation_deg != std::array<double, 3>{0, 0, 0}) {
     throw std::invalid_argument("head: the main camera defines the frame (no pose)");
   }
+  if (!names.count(c.faults.camera)) {
+    throw std::invalid_argument("faults.camera: no camera '" + c.faults.camera + "'");
+  }
   if (!(c.noise.scale >= 0)) throw std::invalid_argument("noise.scale: must be >= 0");
   if (!(c.noise.reference_exposure_us > 0)) {
     throw std::invalid_argument("noise.reference_exposure_us: must be > 0");
@@ -237,6 +240,21 @@ HeadConfig parseHeadConfig(const toml::table& table, const std::string& file,
     c.render.threads = r->integer("threads", c.render.threads);
     r->require(c.render.threads >= 0 && c.render.threads <= 64, "threads", "must be in [0, 64]");
     c.render.pace_real_time = r->boolean("pace_real_time", c.render.pace_real_time);
+    r->finish();
+  }
+  if (auto r = sub("faults")) {
+    FaultConfig& f = c.faults;
+    f.camera = r->string("camera", f.camera);
+    f.drop_frames = r->integer("drop_frames", f.drop_frames);
+    r->require(f.drop_frames >= 0, "drop_frames", "must be >= 0");
+    f.delay_first_frame_ms = r->nonNegative("delay_first_frame_ms", f.delay_first_frame_ms);
+    f.corrupt_frames = r->integer("corrupt_frames", f.corrupt_frames);
+    r->require(f.corrupt_frames >= 0, "corrupt_frames", "must be >= 0");
+    f.lose_steps_after = r->integer("lose_steps_after", f.lose_steps_after);
+    r->require(f.lose_steps_after >= 0, "lose_steps_after", "must be >= 0");
+    f.lose_steps = r->integer("lose_steps", f.lose_steps);
+    r->require(f.lose_steps >= 0, "lose_steps", "must be >= 0");
+    f.home_switch = r->boolean("home_switch", f.home_switch);
     r->finish();
   }
   if (const toml::table* t = root.table("lines")) {

@@ -40,6 +40,20 @@ struct RenderConfig {
   bool operator==(const RenderConfig&) const = default;
 };
 
+// Faults present from power-up ([faults]), for tests that run the firmware on
+// the head through a board profile (the daemon's fault-injection tests): the
+// same faults as VirtualHead's injection calls, counted from the start.
+struct FaultConfig {
+  std::string camera = "main";      // the camera the frame faults apply to
+  int drop_frames = 0;              // its first frames: exposed, never delivered
+  double delay_first_frame_ms = 0;  // its first frame arrives this much later
+  int corrupt_frames = 0;           // its first frames: the lower half garbage
+  int lose_steps_after = 0;         // after this many step pulses (homing included) ...
+  int lose_steps = 0;               // ... this many are lost (the stage stalls)
+  bool home_switch = true;          // false: the home switch never fires
+  bool operator==(const FaultConfig&) const = default;
+};
+
 struct HeadConfig {
   ProjectorParams projector;
   StageParams stage;
@@ -47,6 +61,7 @@ struct HeadConfig {
   NoiseConfig noise;
   LinesConfig lines;
   RenderConfig render;
+  FaultConfig faults;
   bool operator==(const HeadConfig&) const = default;
 };
 

@@ -27,6 +27,18 @@ HeadCore::HeadCore(HeadConfig config_in, Scene scene, std::uint64_t seed_in)
     cameras.push_back(std::make_unique<VirtualCamera>(*this, i));
   }
   light_history_.push({Nanoseconds{0}, false});
+  // Faults present from power-up ([faults]).
+  const FaultConfig& f = config.faults;
+  VirtualCamera& faulty = *cameras[static_cast<std::size_t>(cameraIndex(f.camera))];
+  faulty.dropFrames(f.drop_frames);
+  faulty.delayNextFrame(Nanoseconds{std::llround(f.delay_first_frame_ms * 1e6)});
+  for (int k = 0; k < f.corrupt_frames; ++k)
+    faulty.corruptNextFrame();
+  if (f.lose_steps > 0) {
+    stage.loseStepsAfter(static_cast<std::uint64_t>(f.lose_steps_after),
+                         static_cast<std::uint64_t>(f.lose_steps));
+  }
+  if (!f.home_switch) stage.breakHomeSwitch();
 }
 
 HeadCore::~HeadCore() = default;
@@ -194,6 +206,7 @@ void VirtualCamera::start() {
 void VirtualCamera::stop() {
   started_ = false;
   pending_.clear();
+  delay_ns_ = 0;  // the delay was of a frame in flight, discarded with it
 }
 
 bool VirtualCamera::expose(Nanoseconds start) {

@@ -42,6 +42,7 @@ StageModel::StageModel(const StageParams& params)
 }
 
 bool StageModel::homeAt(std::int64_t position) const {
+  if (home_switch_broken_) return false;
   const double a = static_cast<double>(position) / steps_per_deg_ - params_.home_deg;
   const double d = std::remainder(a, 360.0);
   return std::abs(d) <= params_.home_window_deg / 2;
@@ -105,6 +106,10 @@ void StageModel::stepPulse(Nanoseconds t) {
     return;
   }
   ++counters_.pulses;
+  if (scheduled_loss_ > 0 && counters_.pulses > scheduled_loss_after_) {
+    inject_loss_ += scheduled_loss_;
+    scheduled_loss_ = 0;
+  }
   const int direction = forward_ ? 1 : -1;
   bool ok = followed(t, direction);
   if (ok && inject_loss_ > 0) {

@@ -54,6 +54,16 @@ class StageModel {
 
   // Fault injection and the fault output.
   void loseNextSteps(std::uint64_t count) { inject_loss_ += count; }
+  // The `count` pulses after the first `after` ones are lost.
+  void loseStepsAfter(std::uint64_t after, std::uint64_t count) {
+    scheduled_loss_after_ = after;
+    scheduled_loss_ = count;
+  }
+  // A broken home switch: never active.
+  void breakHomeSwitch() {
+    home_switch_broken_ = true;
+    home_ = false;
+  }
   void setFault(bool fault, Nanoseconds t);
   bool fault() const { return fault_; }
 
@@ -93,6 +103,9 @@ class StageModel {
   bool fault_ = false;
   bool stalled_ = false;
   std::uint64_t inject_loss_ = 0;
+  std::uint64_t scheduled_loss_after_ = 0;
+  std::uint64_t scheduled_loss_ = 0;
+  bool home_switch_broken_ = false;
   std::uint64_t edge_count_ = 0;
   // Previous pulse (executed or not) for the speed/acceleration rule.
   bool have_previous_ = false;

@@ -388,8 +388,15 @@ void ScanService::runJob(Job& job) {
           calib = readQuasiCalibration(file);
           calib->requireImageSize({main.width, main.height});
         } catch (const std::exception& e) {
-          logWarn(std::string("scan without the calibration: ") + e.what());
-          calib.reset();
+          // Replaced or damaged on disk since it was installed: the scan
+          // fails before the head moves rather than give no cloud silently,
+          // and the status shows the camera uncalibrated until a new PUT.
+          {
+            std::lock_guard lock(mutex_);
+            calibration_info_.erase("main");
+          }
+          throw ScanError("the installed calibration " + file.string() +
+                          " is unusable (install it again): " + e.what());
         }
       }
     }
@@ -515,6 +522,18 @@ void ScanService::runJob(Job& job) {
 }
 
 json ScanService::status() const {
+  // The head's outputs as the firmware drives them (before mutex_: the two
+  // mutexes are never held together).
+  json stage = nullptr;
+  json light = nullptr;
+  {
+    std::lock_guard lock(acquisition_mutex_);
+    if (acquisition_) {
+      const HeadOutputs o = acquisition_->outputs();
+      stage = {{"enabled", o.stage_enabled}, {"homed", o.homed}, {"position_deg", o.position_deg}};
+      light = o.light;
+    }
+  }
   std::lock_guard lock(mutex_);
   json s = stateJson();
   json out = {{"state", s["state"]},
@@ -525,7 +544,9 @@ json ScanService::status() const {
               {"calibration", {{"main", calibration_info_.count("main") > 0}}},
               {"scans", store_.count()},
               {"uptime_s", secondsSince(started_)},
-              {"realtime", realtime_}};
+              {"realtime", realtime_},
+              {"stage", stage},
+              {"light", light}};
   try {
     out["disk_free_bytes"] = store_.freeBytes();
   } catch (const std::exception&) {

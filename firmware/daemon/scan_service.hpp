@@ -107,7 +107,7 @@ class ScanService final : public HeadService {
   // The worker's own: the board and its acquisition (swapped for another scene).
   std::unique_ptr<drivers::Board> board_;
   std::optional<std::filesystem::path> board_scene_;
-  std::mutex acquisition_mutex_;  // guards acquisition_ against abort() from stop()
+  mutable std::mutex acquisition_mutex_;  // guards acquisition_ against abort(), status()
   std::mutex calibration_mutex_;  // one calibration install at a time
   std::unique_ptr<Acquisition> acquisition_;
 

@@ -59,6 +59,8 @@ struct DaemonSetup {
   // these), e.g. unshare to give it a small file system; an argument "{data}"
   // is replaced by the data directory.
   std::vector<std::string> wrapper;
+  // A board folder instead of the fixture's (e.g. a copy with [faults]).
+  fs::path board;
 };
 
 // One daemon: `data` is its data directory (kept across restart()).
@@ -88,9 +90,9 @@ class QuickDaemon {
   HttpClient& client() { return *client_; }
 
   std::vector<std::string> args() const {
-    std::vector<std::string> a = {"--board",  (quickFixture() / "board").string(),
-                                  "--listen", "127.0.0.1:0",
-                                  "--data",   data().string()};
+    const fs::path board = setup_.board.empty() ? quickFixture() / "board" : setup_.board;
+    std::vector<std::string> a = {"--board",     board.string(), "--listen",
+                                  "127.0.0.1:0", "--data",       data().string()};
     const fs::path web_root = CYLSCAN_WEB_ROOT;
     if (fs::is_directory(web_root)) {
       a.push_back("--web-root");
@@ -99,6 +101,9 @@ class QuickDaemon {
     a.insert(a.end(), setup_.extra_args.begin(), setup_.extra_args.end());
     return a;
   }
+
+  // The board of the next start() (empty: the fixture's).
+  void setBoard(fs::path board) { setup_.board = std::move(board); }
 
   // A new process on the same data directory (the old one must be stopped).
   void start() {
