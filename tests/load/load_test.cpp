@@ -1,0 +1,299 @@
+// Load on the daemon while a scan runs on the virtual head paced to real
+// time (issue 9, "Load"; CTest label `load`; figures in docs/robustness.md).
+//
+// Three scans of the same seed, each by a fresh cylscand (a fresh head: the
+// noise of a frame is keyed by its sequence number since power-up):
+//   A, B  unloaded — B checks that the paced head is deterministic per seed
+//         (phase.png and depth.tiff byte for byte), and both give the
+//         unloaded step lateness;
+//   C     loaded — for 30 s wrk hammers GET /api/v1/status and /metrics on
+//         127.0.0.1 with 100 connections, while 32 idle clients hold
+//         /api/v1/events open and 8 slow clients read /metrics one byte a
+//         second.
+// C must complete with every frame and no retry, the same phase.png and
+// depth.tiff bytes as A, and a step lateness p99 within
+//   max(2 × unloaded p99, unloaded p99 + 200 µs)
+// (unloaded p99: the larger of A's and B's). Lateness p99 of an unloaded run
+// on a shared 2-core machine is tens of µs with a few-ms tail (max); the
+// bound allows the loaded run twice the unloaded figure, or 200 µs more when
+// that is larger — a fifth of the 1 ms poll the acquisition threads use —
+// so it fails only when HTTP load visibly delays the real-time thread.
+//
+// The head file of the board is changed in three ways for the paced run:
+// pace_real_time = true; the stage's ringing after a stop off
+// (settle_amplitude_deg = 0), so a stop-and-go exposure sees the same angle
+// whatever the real time it starts at; and the motor model's start rate and
+// top speed raised so far that it follows every pulse: the model judges each
+// pulse's speed and acceleration from the interval to the previous one,
+// which under real time includes the OS's scheduling jitter (tens of µs on
+// pulses 400 µs apart reads as thousands of °/s²) — it stalls at once
+// otherwise. The firmware plans its moves from board.toml, unchanged; the
+// lateness it measures is what this test is about.
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdio>
+#include <fstream>
+#include <regex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "quick_daemon.hpp"
+
+namespace cylscan::test {
+namespace {
+
+constexpr int kIdleEventClients = 32;
+constexpr int kSlowClients = 8;
+constexpr int kWrkConnections = 100;
+constexpr int kWrkSeconds = 30;
+
+std::string replaceOnce(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  if (at == std::string::npos) throw std::runtime_error("head.toml has no '" + from + "'");
+  return text.replace(at, from.size(), to);
+}
+
+fs::path pacedBoard(const TempDir& dir) {
+  const fs::path board = dir.path() / "paced";
+  fs::copy(quickFixture() / "board", board, fs::copy_options::recursive);
+  std::string head = readBytes(board / "head.toml");
+  head = replaceOnce(head, "pace_real_time = false", "pace_real_time = true");
+  head = replaceOnce(head, "settle_amplitude_deg = 0.01", "settle_amplitude_deg = 0.0");
+  head = replaceOnce(head, "max_speed_deg_s = 30.0", "max_speed_deg_s = 100000.0");
+  head = replaceOnce(head, "start_speed_deg_s = 4.0", "start_speed_deg_s = 99999.0");
+  std::ofstream(board / "head.toml", std::ios::trunc) << head;
+  return board;
+}
+
+int connectLoopback(int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return -1;
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  inet_pton(AF_INET, "127.0.0.1", &a.sin_addr);
+  if (connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+bool sendAll(int fd, const std::string& text) {
+  std::size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = send(fd, text.data() + done, text.size() - done, MSG_NOSIGNAL);
+    if (n <= 0) return false;
+    done += static_cast<std::size_t>(n);
+  }
+  return true;
+}
+
+// Idle event-stream clients and slow readers, held for `seconds` on their
+// own thread; what they got.
+class SideClients {
+ public:
+  SideClients(int port, int seconds) {
+    for (int i = 0; i < kIdleEventClients; ++i) {
+      const int fd = connectLoopback(port);
+      if (fd >= 0 && sendAll(fd, "GET /api/v1/events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"))
+        idle_.push_back(fd);
+      else if (fd >= 0)
+        close(fd);
+    }
+    for (int i = 0; i < kSlowClients; ++i) {
+      const int fd = connectLoopback(port);
+      if (fd >= 0 && sendAll(fd, "GET /metrics HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"))
+        slow_.push_back(fd);
+      else if (fd >= 0)
+        close(fd);
+    }
+    slow_bytes_.assign(slow_.size(), 0);
+    thread_ = std::thread([this, seconds] { run(seconds); });
+  }
+  ~SideClients() {
+    if (thread_.joinable()) thread_.join();
+    for (int fd : idle_)
+      close(fd);
+    for (int fd : slow_)
+      close(fd);
+  }
+  // Idle clients whose stream was answered (read at last: the 200 and the
+  // first events).
+  int idleAnswered() const {
+    int n = 0;
+    for (int fd : idle_) {
+      char buffer[4096];
+      const ssize_t got = recv(fd, buffer, sizeof buffer, MSG_DONTWAIT);
+      if (got > 0 &&
+          std::string(buffer, static_cast<std::size_t>(got)).rfind("HTTP/1.1 200", 0) == 0)
+        ++n;
+    }
+    return n;
+  }
+  void join() {
+    if (thread_.joinable()) thread_.join();
+  }
+  int idleHeld() const { return static_cast<int>(idle_.size()); }
+  int slowHeld() const { return static_cast<int>(slow_.size()); }
+  // Slow readers that got a byte every second they asked for one.
+  int slowSteady(int seconds) const {
+    int n = 0;
+    for (int b : slow_bytes_)
+      n += b >= seconds - 1 ? 1 : 0;
+    return n;
+  }
+
+ private:
+  void run(int seconds) {
+    for (int s = 0; s < seconds; ++s) {
+      for (std::size_t i = 0; i < slow_.size(); ++i) {
+        pollfd p{slow_[i], POLLIN, 0};
+        char byte;
+        if (poll(&p, 1, 0) > 0 && recv(slow_[i], &byte, 1, MSG_DONTWAIT) == 1) ++slow_bytes_[i];
+      }
+      std::this_thread::sleep_for(std::chrono::seconds(1));
+    }
+  }
+  std::vector<int> idle_, slow_;
+  std::vector<int> slow_bytes_;
+  std::thread thread_;
+};
+
+struct WrkFigures {
+  double requests_per_s = 0;
+  std::string p50, p99;  // as wrk prints them (e.g. "1.23ms")
+  std::string errors;    // "Socket errors: …" / "Non-2xx …" lines
+  std::string text;
+};
+
+// wrk for kWrkSeconds on /api/v1/status and /metrics in turn (a Lua script).
+WrkFigures runWrk(const TempDir& dir, const std::string& url) {
+  const fs::path script = dir.write("paths.lua",
+                                    "local paths = {\"/api/v1/status\", \"/metrics\"}\n"
+                                    "local i = 0\n"
+                                    "request = function()\n"
+                                    "  i = i + 1\n"
+                                    "  return wrk.format(\"GET\", paths[i % 2 + 1])\n"
+                                    "end\n");
+  const std::string command = "wrk -t2 -c" + std::to_string(kWrkConnections) + " -d" +
+                              std::to_string(kWrkSeconds) + "s --latency -s " + script.string() +
+                              " " + url + " 2>&1";
+  WrkFigures f;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) throw std::runtime_error("cannot run: " + command);
+  char buffer[4096];
+  while (fgets(buffer, sizeof buffer, pipe) != nullptr)
+    f.text += buffer;
+  pclose(pipe);
+  std::smatch m;
+  if (std::regex_search(f.text, m, std::regex(R"(Requests/sec:\s+([0-9.]+))")))
+    f.requests_per_s = std::stod(m[1]);
+  if (std::regex_search(f.text, m, std::regex(R"(\n\s+50%\s+(\S+))"))) f.p50 = m[1];
+  if (std::regex_search(f.text, m, std::regex(R"(\n\s+99%\s+(\S+))"))) f.p99 = m[1];
+  for (const char* what : {"Socket errors:[^\n]*", "Non-2xx[^\n]*"})
+    if (std::regex_search(f.text, m, std::regex(what))) f.errors += m[0].str() + "; ";
+  return f;
+}
+
+struct ScanRun {
+  json scan;
+  std::string phase_png, depth_tiff;
+  double step_p99_us = -1, step_max_us = -1;
+  WrkFigures wrk;
+  int idle_held = 0, slow_held = 0, slow_steady = 0;
+  int status_during = 0;  // our own status polls answered 200 during the load
+};
+
+ScanRun scanOnce(const fs::path& board, bool loaded) {
+  DaemonSetup setup;
+  setup.board = board;
+  QuickDaemon daemon(std::move(setup));
+  const HttpClient& client = daemon.client();
+  ScanRun run;
+  const std::string id = startScan(client, {{"save_bundle", false}});
+  if (id.empty()) return run;
+  if (loaded) {
+    TempDir wrk_dir;
+    SideClients side(daemon.process().port(), kWrkSeconds);
+    run.wrk = runWrk(wrk_dir, client.baseUrl());
+    side.join();
+    run.idle_held = side.idleAnswered();
+    run.slow_held = side.slowHeld();
+    run.slow_steady = side.slowSteady(kWrkSeconds);
+    const json during = client.get("/api/v1/scans/" + id).json();
+    EXPECT_EQ(during.value("state", ""), "running")
+        << "the scan ended before the load did: the load did not overlap it all: " << during.dump();
+  }
+  run.scan = finishScan(client, id);
+  run.phase_png = client.get("/api/v1/scans/" + id + "/phase.png").body;
+  run.depth_tiff = client.get("/api/v1/scans/" + id + "/depth.tiff").body;
+  if (run.scan.contains("step_jitter")) {
+    run.step_p99_us = run.scan["step_jitter"].value("p99_us", -1.0);
+    run.step_max_us = run.scan["step_jitter"].value("max_us", -1.0);
+  }
+  daemon.stop(std::chrono::seconds(60));
+  return run;
+}
+
+void expectComplete(const ScanRun& r, const std::string& what) {
+  EXPECT_EQ(r.scan.value("state", ""), "done") << what << ": " << r.scan.dump();
+  EXPECT_EQ(r.scan.value("frames_done", -1), r.scan.value("frames", -2))
+      << what << ": frames lost: " << r.scan.dump();
+  EXPECT_EQ(r.scan.value("retries", -1), 0) << what << ": frames retried: " << r.scan.dump();
+  EXPECT_FALSE(r.phase_png.empty()) << what;
+  EXPECT_FALSE(r.depth_tiff.empty()) << what;
+}
+
+TEST(DaemonLoad, ScanUnderHttpLoadMatchesAnUnloadedScan) {
+  if (std::system("command -v wrk >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "wrk is not installed (scripts/install-deps.sh)";
+  TempDir boards;
+  const fs::path board = pacedBoard(boards);
+
+  const ScanRun a = scanOnce(board, false);
+  expectComplete(a, "unloaded scan A");
+  const ScanRun b = scanOnce(board, false);
+  expectComplete(b, "unloaded scan B");
+  ASSERT_TRUE(a.phase_png == b.phase_png && a.depth_tiff == b.depth_tiff)
+      << "two unloaded paced scans of the same seed differ: the head is not deterministic "
+         "per seed, so 'the same phase' cannot be byte for byte";
+  const ScanRun c = scanOnce(board, true);
+  expectComplete(c, "loaded scan C");
+  EXPECT_TRUE(c.phase_png == a.phase_png) << "the loaded scan's phase.png differs";
+  EXPECT_TRUE(c.depth_tiff == a.depth_tiff) << "the loaded scan's depth.tiff differs";
+
+  const double unloaded_p99 = std::max(a.step_p99_us, b.step_p99_us);
+  const double bound = std::max(2 * unloaded_p99, unloaded_p99 + 200.0);
+  std::printf("[ load     ] wrk %d connections %d s: %.0f requests/s, latency p50 %s p99 %s; %s\n",
+              kWrkConnections, kWrkSeconds, c.wrk.requests_per_s, c.wrk.p50.c_str(),
+              c.wrk.p99.c_str(), c.wrk.errors.empty() ? "no errors" : c.wrk.errors.c_str());
+  std::printf(
+      "[ load     ] %d/%d idle event streams answered, %d/%d slow readers (%d read a byte "
+      "every second)\n",
+      c.idle_held, kIdleEventClients, c.slow_held, kSlowClients, c.slow_steady);
+  std::printf(
+      "[ load     ] step lateness p99/max: A %.0f/%.0f us, B %.0f/%.0f us, loaded "
+      "%.0f/%.0f us (bound %.0f us); scan %.1f s unloaded, %.1f s loaded\n",
+      a.step_p99_us, a.step_max_us, b.step_p99_us, b.step_max_us, c.step_p99_us, c.step_max_us,
+      bound, a.scan.value("duration_s", 0.0), c.scan.value("duration_s", 0.0));
+  std::printf("%s\n", c.wrk.text.c_str());
+  EXPECT_GT(c.wrk.requests_per_s, 0) << c.wrk.text;
+  EXPECT_GE(unloaded_p99, 0) << "no step lateness in the unloaded scans";
+  EXPECT_GE(c.step_p99_us, 0) << "no step lateness in the loaded scan";
+  EXPECT_LE(c.step_p99_us, bound) << "step lateness p99 under load";
+  EXPECT_GT(c.slow_held, 0) << "no slow client got a connection";
+  EXPECT_GT(c.idle_held, 0) << "no idle event stream got a connection";
+}
+
+}  // namespace
+}  // namespace cylscan::test
