@@ -41,7 +41,7 @@ std::vector<double> field(const Rows& rows, Field f) {
 // A markdown table, built row by row.
 class Table {
  public:
-  explicit Table(std::vector<std::string> header) : columns_(header.size()) { row(header); }
+  explicit Table(const std::vector<std::string>& header) : columns_(header.size()) { row(header); }
   Table& row(const std::vector<std::string>& cells) {
     text_ << "|";
     for (std::size_t i = 0; i < columns_; ++i)

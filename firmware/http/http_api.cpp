@@ -122,7 +122,7 @@ struct ApiServer {
   Reply handle(MHD_Connection* c, Request& r);
   Reply staticFile(const Request& r) const;
   MHD_Result startEvents(MHD_Connection* c, Request& r);
-  void completed(Request& r);
+  void completed(const Request& r);
 
   void pumpLoop();
   void dropHungUp(const std::vector<std::shared_ptr<SseClient>>& clients);
@@ -688,7 +688,7 @@ MHD_Result ApiServer::startEvents(MHD_Connection* c, Request& r) {
   return result;
 }
 
-void ApiServer::completed(Request& r) {
+void ApiServer::completed(const Request& r) {
   if (r.holds_calibration_upload) calibration_upload = false;
   if (r.answered && !r.streaming) metrics.record(r.status, Clock::now() - r.start);
 }

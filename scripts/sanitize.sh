@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Sanitized test runs: scripts/sanitize.sh [asan|tsan|all] (default all).
+#   asan  AddressSanitizer + UndefinedBehaviorSanitizer, the whole suite
+#         except the package test (preset "asan", build/asan)
+#   tsan  ThreadSanitizer, the tests that run threads: firmware, drivers,
+#         daemon, http, daemon_e2e (preset "tsan", build/tsan)
+# Configures, builds and runs each through its CMake presets; the test presets
+# set ASAN/UBSAN/TSAN_OPTIONS so that a report in any process, the daemon and
+# the CLI the tests start included, fails the test. Exits non-zero if any
+# build or test fails. JOBS=N overrides the parallelism (default: nproc).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+which="${1:-all}"
+case "$which" in
+  asan) presets=(asan) ;;
+  tsan) presets=(tsan) ;;
+  all) presets=(asan tsan) ;;
+  *)
+    echo "usage: $0 [asan|tsan|all]" >&2
+    exit 2
+    ;;
+esac
+jobs="${JOBS:-$(nproc)}"
+launcher=()
+if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
+
+status=0
+for preset in "${presets[@]}"; do
+  echo "== $preset: configure and build (build/$preset)"
+  start=$(date +%s)
+  cmake --preset "$preset" "${launcher[@]}" >/dev/null
+  if [ "$preset" = tsan ]; then
+    # Only the programs the tsan test preset runs (its label filter).
+    cmake --build --preset "$preset" -j "$jobs" --target firmware_tests drivers_tests \
+      daemon_tests http_tests daemon_e2e_tests cylscand cylscan
+  else
+    cmake --build --preset "$preset" -j "$jobs"
+  fi
+  built=$(date +%s)
+  echo "== $preset: test"
+  # CTest prints its summary ("N% tests passed, ..." and the failed tests).
+  if ! ctest --preset "$preset" -j "$jobs"; then
+    status=1
+    echo "== $preset: FAILED" >&2
+  fi
+  done_at=$(date +%s)
+  echo "== $preset: build $((built - start)) s, tests $((done_at - built)) s"
+done
+exit "$status"
