@@ -25,6 +25,7 @@ PKGS=(
   cppcheck clang-tidy      # scripts/lint.sh: the static analysis CI runs (cppcheck 2.10, clang-tidy 14)
   wrk                      # tests/load: the HTTP load generator of the daemon's load test
   clang libclang-rt-14-dev # scripts/fuzz.sh: the fuzz targets are built with clang, libFuzzer and its sanitizers
+  qemu-system-arm dwarves kmod cpio # tests/emulated-board: the arm64 guest, pahole for its modules' BTF, depmod, its initramfs
 )
 # Hardware backends, from bookworm-backports (bookworm's libgpiod is v1, its
 # libcamera 0.0.3): the libgpiod v2 C++ bindings and libcamera 0.3.
