@@ -543,7 +543,7 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       if (r.body.find_first_not_of(" \t\r\n") != std::string::npos) {
         try {
           scan_options = json::parse(r.body);
-        } catch (const json::parse_error& e) {
+        } catch (const json::exception& e) {  // parse_error, or out_of_range for 1e400
           return errorReply(400, std::string("the body is not valid JSON: ") + e.what());
         }
         if (!scan_options.is_object()) return errorReply(400, "the body must be a JSON object");

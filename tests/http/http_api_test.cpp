@@ -180,6 +180,17 @@ TEST_F(HttpApiTest, StartScanRefusals) {
   }
 }
 
+// Found by fuzz/fuzz_scan_options: nlohmann::json reports a number beyond a
+// double's range as out_of_range, not parse_error; the body is still bad
+// JSON from the client (400), not an internal error (500).
+TEST_F(HttpApiTest, NumberOverflowInTheBodyIs400) {
+  start();
+  const HttpResult r = send("POST", "/api/v1/scans", R"({"frames": 1e400})");
+  EXPECT_EQ(r.status, 400) << r.body;
+  EXPECT_NE(errorOf(r).find("not valid JSON"), std::string::npos) << r.body;
+  EXPECT_EQ(service.start_calls, 0);
+}
+
 TEST_F(HttpApiTest, ListGetAndDeleteScans) {
   service.scans["20261201-100000-aaaa"] = json{{"id", "20261201-100000-aaaa"}, {"state", "done"}};
   service.scans["20261201-110000-bbbb"] = json{{"id", "20261201-110000-bbbb"}, {"state", "done"}};
