@@ -1,6 +1,6 @@
 // The calibration upload (PUT /api/v1/calibration/{camera}): the body as the
 // HTTP layer hands it to ScanService::installCalibration for the main camera
-// of a tiny virtual head (8×6, so a whole valid calibration is 2.8 KB and
+// of a tiny virtual head (16×16, so a whole valid calibration is 15 KB and
 // the fuzzer can reach the install). A fault must be ServiceError 400
 // (corrupt) or 422 (another image size); an accepted file must be installed
 // byte for byte. The CRC-32 of the input is made right first when the input

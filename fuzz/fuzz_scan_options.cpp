@@ -1,6 +1,7 @@
 // The JSON options of POST /api/v1/scans, as the HTTP layer hands them to the
 // service: a body that is only white space means {}, anything else must
-// parse as a JSON object (else 400 from the HTTP layer), and the service
+// parse as a JSON object (else 400 from the HTTP layer:
+// json::parse_error, or json::out_of_range for a number such as 1e400), and the service
 // then validates it (ServiceError 400 for bad options). The validation is
 // reached through ScanService::scanEstimateBytes, which validates exactly as
 // startScan does without starting a scan. Only ServiceError 400 may escape.
@@ -21,7 +22,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (body.find_first_not_of(" \t\r\n") != std::string::npos) {
     try {
       options = json::parse(body);
-    } catch (const json::parse_error&) {
+    } catch (const json::exception&) {  // the HTTP layer's 400
       return 0;
     }
     if (!options.is_object()) return 0;

@@ -1,4 +1,4 @@
-// The daemon's ScanService on a tiny virtual head (board/sim at 8×6 pixels,
+// The daemon's ScanService on a tiny virtual head (board/sim at 16×16 pixels,
 // its scenes/ linked), made once per fuzzing process: the targets that fuzz
 // what the service validates (scan options, calibration uploads) call it
 // as the HTTP layer does, without sockets. Its worker stays idle.
@@ -14,8 +14,8 @@
 
 namespace cylscan::fuzz {
 
-inline constexpr int kSmallWidth = 8;
-inline constexpr int kSmallHeight = 6;
+inline constexpr int kSmallWidth = 16;
+inline constexpr int kSmallHeight = 16;
 
 inline firmware::ScanService& smallService() {
   static const std::unique_ptr<firmware::ScanService> service = [] {
@@ -28,7 +28,8 @@ inline firmware::ScanService& smallService() {
     s = std::regex_replace(s, std::regex("height = 800"),
                            "height = " + std::to_string(kSmallHeight));
     s = s.substr(0, s.rfind("\n[sim]") + 1);
-    s += "[sim]\nscene = \"scenes/sphere_on_plane.toml\"\nseed = 1\nresolution = [" +
+    s += "[sim]\nhead = \"" + (sim / "head.toml").string() +
+         "\"\nscene = \"scenes/sphere_on_plane.toml\"\nseed = 1\nresolution = [" +
          std::to_string(kSmallWidth) + ", " + std::to_string(kSmallHeight) + "]\n";
     writeFile(board / "board.toml", s);
     fs::create_directory_symlink(sim / "scenes", board / "scenes");
