@@ -167,6 +167,40 @@ class FaultedDaemon {
   std::string good_cloud_;
 };
 
+// The status's stage and light are the lines as the firmware drives them:
+// enabled and on while a scan has frames, disabled and off after it, the
+// stage homed from the first scan on. (Every fault test below relies on them.)
+TEST(DaemonFaults, StatusShowsTheOutputsAsDriven) {
+  QuickDaemon daemon;
+  const HttpClient& client = daemon.client();
+  const json idle = client.get("/api/v1/status").json();
+  expectSafeOutputs(idle, "before any scan");
+  EXPECT_EQ(idle["stage"].value("homed", true), false) << "homed before homing: " << idle.dump();
+  const std::string id = startScan(client, {{"frames", 60}, {"save_bundle", false}});
+  ASSERT_FALSE(id.empty());
+  json during;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline) {
+    const json scan = client.get("/api/v1/scans/" + id).json();
+    if (scan.value("state", "") != "running" && scan.value("state", "") != "queued") break;
+    if (scan.value("frames_done", 0) >= 1) {
+      during = client.get("/api/v1/status").json();
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_TRUE(during.is_object()) << "the scan ended before the status could be read";
+  // Still running when read (the status is read after a frame, before the last).
+  EXPECT_EQ(during["stage"].value("enabled", false), true) << during.dump();
+  EXPECT_EQ(during.value("light", false), true) << during.dump();
+  const json scan = finishScan(client, id);
+  EXPECT_EQ(scan.value("state", ""), "done") << scan.dump();
+  const json after = client.get("/api/v1/status").json();
+  expectSafeOutputs(after, "after the scan");
+  EXPECT_EQ(after["stage"].value("homed", false), true) << after.dump();
+  daemon.stop();
+}
+
 // A frame the camera exposes but never delivers: its wait times out, the
 // frame is triggered again once (docs/architecture.md, "Faults") and the scan
 // completes with every frame and the retry counted.
