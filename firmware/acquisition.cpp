@@ -256,11 +256,12 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
         for (;;) {
           const drivers::PreparedSweep sweep = stage_->prepareSweep(set.positions.front(), request);
           for (int k = 0; k < n; ++k)
-            shared.angle_deg[static_cast<std::size_t>(base + k)] =
+            shared.angle_deg[static_cast<std::size_t>(base) + static_cast<std::size_t>(k)] =
                 sweep.trigger_angles_deg[static_cast<std::size_t>(k)];
           const nanoseconds start = clock.now();
           for (int k = 0; k < n; ++k)
-            shared.trigger_ns[static_cast<std::size_t>(base + k)].store(start.count());
+            shared.trigger_ns[static_cast<std::size_t>(base) + static_cast<std::size_t>(k)].store(
+                start.count());
           shared.sweep_generation.fetch_add(1, std::memory_order_acq_rel);
           shared.triggered.store(base + n, std::memory_order_release);
           stage_->runSweep(sweep, trigger_);

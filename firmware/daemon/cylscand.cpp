@@ -74,7 +74,9 @@ int waitForStop(const sigset_t& signals) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+// A function-try-block: an exception nothing below expects (std::bad_alloc)
+// is reported and ends the daemon with 1 instead of escaping main.
+int main(int argc, char** argv) try {
   CLI::App app{"cylscand: the daemon of the cylscan scanning head (HTTP API, docs/http-api.md)"};
   std::string config, board, listen, data, token, web_root, log_level;
   auto* o_config = app.add_option("--config", config,
@@ -158,4 +160,7 @@ int main(int argc, char** argv) {
   service.reset();
   logInfo("stopped");
   return status;
+} catch (const std::exception& e) {
+  std::cerr << "cylscand: " << e.what() << "\n";
+  return 1;
 }
