@@ -55,7 +55,8 @@ TEST(DaemonEndpoint, OversizedRequestsAreRefusedWithoutMemoryGrowth) {
       config_dir.write("cylscan.toml", "[daemon]\nmax_calibration_bytes = 65536\n");
   QuickDaemon daemon(DaemonSetup({"--config", config.string()}, /*calibrate=*/false));
   const HttpClient& client = daemon.client();
-  const std::string body = "{\"mode\": \"stop\", \"pad\": \"" + std::string(100 * 1024, 'x') + "\"}";
+  const std::string body =
+      "{\"mode\": \"stop\", \"pad\": \"" + std::string(100 * 1024, 'x') + "\"}";
   const std::string header = "X-Padding: " + std::string(9 * 1024, 'h');
   const std::string calibration = quickCalibration().substr(0, 200000);
   int wrong = 0;
@@ -89,9 +90,10 @@ TEST(DaemonEndpoint, OversizedRequestsAreRefusedWithoutMemoryGrowth) {
   const std::uint64_t after = residentBytes(daemon.process().pid());
   EXPECT_EQ(wrong, 0) << "requests not refused as expected, the first: " << first_wrong;
   const double growth_mib = (static_cast<double>(after) - static_cast<double>(before)) / 1048576.0;
-  std::printf("[ memory   ] cylscand VmRSS %.1f MiB before, %.1f MiB after 1000 oversized "
-              "requests (%+.2f MiB)\n",
-              before / 1048576.0, after / 1048576.0, growth_mib);
+  std::printf(
+      "[ memory   ] cylscand VmRSS %.1f MiB before, %.1f MiB after 1000 oversized "
+      "requests (%+.2f MiB)\n",
+      before / 1048576.0, after / 1048576.0, growth_mib);
   EXPECT_LT(growth_mib, 16.0) << "the daemon's resident memory grew by " << growth_mib << " MiB";
   // Nothing was stored, and the daemon serves as before.
   EXPECT_EQ(client.get("/api/v1/scans").json().size(), 0u);
