@@ -23,12 +23,11 @@
 // pace_real_time = true; the stage's ringing after a stop off
 // (settle_amplitude_deg = 0), so a stop-and-go exposure sees the same angle
 // whatever the real time it starts at; and the motor model's start rate and
-// top speed raised so far that it follows every pulse: the model judges each
-// pulse's speed and acceleration from the interval to the previous one,
-// which under real time includes the OS's scheduling jitter (tens of µs on
-// pulses 400 µs apart reads as thousands of °/s²) — it stalls at once
-// otherwise. The firmware plans its moves from board.toml, unchanged; the
-// lateness it measures is what this test is about.
+// top speed raised so far that it follows every pulse: a step executor that
+// wakes late emits the overdue pulses back to back, and on a shared VM (max
+// lateness of a few ms) the model stalls on such a burst in every paced run.
+// The firmware plans its moves from board.toml, unchanged; the lateness it
+// measures is what this test is about.
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
