@@ -17,7 +17,9 @@ check() { # check WHAT COMMAND...
     fail "$what: $("$bb" tail -n 3 /tmp/check.out | "$bb" tr '\n' ' ')"
   fi
 }
+uptime() { "$bb" cut -d' ' -f1 /proc/uptime; }
 finish() {
+  echo "INFO guest time at the end: $(uptime)s"
   echo "GUEST DONE"
   "$bb" sync
   "$bb" poweroff -f
@@ -121,5 +123,6 @@ else
   fail "vivid loopback: the captured frame differs from the written one ($("$bb" wc -c </tmp/captured.raw 2>/dev/null) bytes; $("$bb" tail -n 2 /tmp/capture.out | "$bb" tr '\n' ' '))"
 fi
 
+echo "INFO guest time before the scans: $(uptime)s"
 . /opt/emulated-board/guest-scan.sh
 finish

@@ -184,11 +184,12 @@ step "boot"
 console=$cache/console.log
 qpid=""
 cleanup() { if [ -n "$qpid" ]; then kill "$qpid" 2>/dev/null || true; wait "$qpid" 2>/dev/null || true; fi; }
-trap cleanup EXIT INT TERM
+trap cleanup EXIT
+trap 'cleanup; exit 130' INT TERM
 results=$cache/results
 rm -rf "$results"
 mkdir -p "$results"
-timeout_s=${EMULATED_TIMEOUT_S:-600}
+timeout_s=${EMULATED_TIMEOUT_S:-900}
 # The in-process twin of the guest's scan (tests/emulated-board/make-reference-board.sh):
 # the same arm64 program on the virtual head, under qemu-user with the sysroot
 # (faster than in the emulated CPU); the guest compares its phase with its own.

@@ -11,6 +11,7 @@
 //       writes it to the V4L2 output node DEV. SIGTERM ends it; FILE then
 //       gets one line per trigger and the stage's counters.
 //       --stop-after K: writes no frame after the K-th (the camera stops).
+//       --rt-priority P: runs at SCHED_FIFO priority P.
 //   cylscan-emulated-feeder angles BUNDLE LOG --steps-per-deg S --tolerance-steps T
 //       the bundle's executed angles against the angles the feeder counted.
 //   cylscan-emulated-feeder compare PHASE_A PHASE_B --max-rms R --max-mismatch F
@@ -18,6 +19,7 @@
 #include <fcntl.h>
 #include <linux/videodev2.h>
 #include <poll.h>
+#include <sched.h>
 #include <sys/ioctl.h>
 #include <unistd.h>
 
@@ -302,6 +304,14 @@ int runFeeder(const Args& a) {
   bool home_level = stage.homeActive();
   chip.pull(home, home_level);
   GpioTrace trace(a.get("tracefs", "/sys/kernel/tracing"), chip.base(), chip.lines());
+  // The home switch should follow the step that reaches it before the
+  // firmware's next one: above the firmware's threads when asked.
+  if (const int rt = std::stoi(a.get("rt-priority", "0")); rt > 0) {
+    sched_param sp{};
+    sp.sched_priority = rt;
+    if (::sched_setscheduler(0, SCHED_FIFO, &sp) != 0)
+      std::cerr << "feeder: SCHED_FIFO " << rt << ": " << strerror(errno) << " (running without)\n";
+  }
   std::signal(SIGTERM, onSignal);
   std::signal(SIGINT, onSignal);
   std::cerr << "feeder: ready (" << chip.name() << ", gpio base " << chip.base() << ")\n";
