@@ -156,9 +156,13 @@ DaemonDefaults daemonDefaults(const fs::path& exe_dir) {
                 : fs::path(CYLSCAN_SOURCE_BOARD_DIR);
   d.web_root = fs::is_directory(share / "web", ec) ? (share / "web").lexically_normal()
                                                    : fs::path(CYLSCAN_BUILD_WEB_DIR);
+  // getenv is not thread-safe against setenv: called from main before any
+  // thread starts, and nothing in the daemon sets the environment.
+  // NOLINTNEXTLINE(concurrency-mt-unsafe)
   if (const char* state = std::getenv("XDG_STATE_HOME");
       state && *state && fs::path(state).is_absolute())
     d.data_dir = fs::path(state) / "cylscan";
+  // NOLINTNEXTLINE(concurrency-mt-unsafe)
   else if (const char* home = std::getenv("HOME"); home && *home)
     d.data_dir = fs::path(home) / ".local" / "state" / "cylscan";
   else
