@@ -1,10 +1,12 @@
 #include "formats/stereo_calibration.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include "formats/atomic_file.hpp"
 #include "formats/file_reading.hpp"
@@ -161,6 +163,27 @@ cv::Vec<double, N> toVec(const cv::Mat& m) {
   return out;
 }
 
+// The file is one YAML document. OpenCV 4.6's YAML parser loops forever on
+// some streams of several (a second document starting with '-' but not
+// "---"), so a second document marker ("---" or "...") at the start of a line
+// is refused before the parser sees the text.
+void requireOneYamlDocument(const std::string& text, const fs::path& file) {
+  bool started = false;
+  int line = 1;
+  for (std::size_t pos = 0; pos < text.size(); ++line) {
+    const std::size_t end = std::min(text.find('\n', pos), text.size());
+    const std::string_view l(text.data() + pos, end - pos);
+    if (l.starts_with("---") || l.starts_with("...")) {
+      if (started) {
+        throw InputError(file, "line " + std::to_string(line) +
+                                   ": a second YAML document marker (the file is one document)");
+      }
+      started = true;
+    }
+    pos = end + 1;
+  }
+}
+
 }  // namespace
 
 StereoCalibration readStereoCalibration(const fs::path& file) {
@@ -170,6 +193,7 @@ StereoCalibration readStereoCalibration(const fs::path& file) {
     throw InputError(file,
                      "not an OpenCV FileStorage YAML file (it does not start with \"%YAML\")");
   }
+  if (text.rfind("%YAML", 0) == 0) requireOneYamlDocument(text, file);
   cv::FileStorage storage;
   try {
     storage.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);

@@ -217,6 +217,18 @@ TEST_F(StereoCalibrationTest, ParserFaultThatIsNotACvException) {
                                {"not a valid OpenCV FileStorage"}));
 }
 
+// Found by fuzz/fuzz_stereo_yaml: OpenCV 4.6's YAML parser never returns on
+// this input (a second document that starts with '-' but not "---"). The
+// reader refuses a second document marker before OpenCV parses anything.
+TEST_F(StereoCalibrationTest, SecondYamlDocumentIsRefusedBeforeParsing) {
+  writeText(file(), "%YAML:1.0\n-----0\n----\nh");
+  EXPECT_TRUE(throwsInputError([&] { readStereoCalibration(file()); }, file(),
+                               {"line 3", "a second YAML document"}));
+  writeText(file(), yaml(validNodes()) + "...\n---\nR: 1\n");
+  EXPECT_TRUE(
+      throwsInputError([&] { readStereoCalibration(file()); }, file(), {"a second YAML document"}));
+}
+
 TEST_F(StereoCalibrationTest, TopLevelIsAList) {
   writeText(file(), "%YAML:1.0\n---\n- 1\n- 2\n");
   EXPECT_TRUE(
