@@ -163,24 +163,47 @@ cv::Vec<double, N> toVec(const cv::Mat& m) {
   return out;
 }
 
-// The file is one YAML document. OpenCV 4.6's YAML parser loops forever on
-// some streams of several (a second document starting with '-' but not
-// "---"), so a second document marker ("---" or "...") at the start of a line
-// is refused before the parser sees the text.
-void requireOneYamlDocument(const std::string& text, const fs::path& file) {
-  bool started = false;
-  int line = 1;
-  for (std::size_t pos = 0; pos < text.size(); ++line) {
+// OpenCV 4.6's YAML parser never returns when the text after its first
+// document begins with '-' but not "---". It gets there after a top-level
+// collection that ends before the end of the file: one that begins on the
+// "---" line or indented, or one ended by "...". The file is one map of
+// named nodes, so its lines must look so before the parser sees them: the
+// %YAML line, at most one "---" line of its own before the nodes, and a node
+// name at the start of every line that does not begin with a space (blank
+// lines and # comments aside). Then the top-level map ends only at the end.
+void requireOneYamlMap(const std::string& text, const fs::path& file) {
+  bool marker = false;
+  bool nodes = false;
+  int line = 0;
+  for (std::size_t pos = 0; pos < text.size();) {
+    ++line;
     const std::size_t end = std::min(text.find('\n', pos), text.size());
-    const std::string_view l(text.data() + pos, end - pos);
-    if (l.starts_with("---") || l.starts_with("...")) {
-      if (started) {
-        throw InputError(file, "line " + std::to_string(line) +
-                                   ": a second YAML document marker (the file is one document)");
-      }
-      started = true;
-    }
+    std::string_view l(text.data() + pos, end - pos);
     pos = end + 1;
+    while (!l.empty() && (l.back() == '\r' || l.back() == ' '))
+      l.remove_suffix(1);
+    if (line == 1 || l.empty() || l.front() == '#') continue;
+    const auto fault = [&](const std::string& what) {
+      throw InputError(file, "line " + std::to_string(line) + ": " + what);
+    };
+    const char c = l.front();
+    if (l.starts_with("---")) {
+      if (marker || nodes || l != "---")
+        fault(
+            "a YAML document marker other than one \"---\" line before the nodes (the file "
+            "is one document)");
+      marker = true;
+    } else if (l.starts_with("...")) {
+      fault("a YAML document end marker (the file is one document)");
+    } else if (c == ' ') {
+      if (!nodes) fault("the first node must begin at the start of its line");
+    } else if ((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_') {
+      nodes = true;
+    } else if (c == '-') {
+      fault("the top level is not a map of named nodes");
+    } else {
+      fault("a node name (a letter or '_') must begin every line that does not begin with a space");
+    }
   }
 }
 
@@ -193,7 +216,7 @@ StereoCalibration readStereoCalibration(const fs::path& file) {
     throw InputError(file,
                      "not an OpenCV FileStorage YAML file (it does not start with \"%YAML\")");
   }
-  if (text.rfind("%YAML", 0) == 0) requireOneYamlDocument(text, file);
+  if (text.rfind("%YAML", 0) == 0) requireOneYamlMap(text, file);
   cv::FileStorage storage;
   try {
     storage.open(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);

@@ -208,25 +208,36 @@ TEST_F(StereoCalibrationTest, GarbageFile) {
                                {"not a valid OpenCV FileStorage"}));
 }
 
-// Found by fuzz/fuzz_stereo_yaml: for some malformed documents, such as this
-// one, OpenCV 4.6's YAML parser throws std::length_error, not cv::Exception.
-// It is bad input like any other.
-TEST_F(StereoCalibrationTest, ParserFaultThatIsNotACvException) {
+// Found by fuzz/fuzz_stereo_yaml: OpenCV 4.6's YAML parser throws
+// std::length_error (not cv::Exception) on this input; it is now refused by
+// the line check before the parser sees it, and the reader also turns any
+// std::exception of the parser into an InputError.
+TEST_F(StereoCalibrationTest, IndentedFirstNodeIsRefused) {
   writeText(file(), "%YAML:1.\n r:3\n :");
   EXPECT_TRUE(throwsInputError([&] { readStereoCalibration(file()); }, file(),
-                               {"not a valid OpenCV FileStorage"}));
+                               {"line 2", "first node must begin at the start"}));
 }
 
 // Found by fuzz/fuzz_stereo_yaml: OpenCV 4.6's YAML parser never returns on
-// this input (a second document that starts with '-' but not "---"). The
-// reader refuses a second document marker before OpenCV parses anything.
-TEST_F(StereoCalibrationTest, SecondYamlDocumentIsRefusedBeforeParsing) {
+// these inputs (after a top-level collection that ends early, a second
+// document that starts with '-' but not "---"). The reader refuses them
+// before OpenCV parses anything.
+TEST_F(StereoCalibrationTest, InputsThatHangOpenCvAreRefusedBeforeParsing) {
   writeText(file(), "%YAML:1.0\n-----0\n----\nh");
   EXPECT_TRUE(throwsInputError([&] { readStereoCalibration(file()); }, file(),
-                               {"line 3", "a second YAML document"}));
+                               {"line 2", "document marker"}));
+  writeText(file(), "%YAML:1.\n----h\nh\nh");
+  EXPECT_TRUE(throwsInputError([&] { readStereoCalibration(file()); }, file(),
+                               {"line 2", "document marker"}));
   writeText(file(), yaml(validNodes()) + "...\n---\nR: 1\n");
   EXPECT_TRUE(
-      throwsInputError([&] { readStereoCalibration(file()); }, file(), {"a second YAML document"}));
+      throwsInputError([&] { readStereoCalibration(file()); }, file(), {"document end marker"}));
+  writeText(file(), yaml(validNodes()) + "---\n");
+  EXPECT_TRUE(
+      throwsInputError([&] { readStereoCalibration(file()); }, file(), {"document marker"}));
+  writeText(file(), yaml(validNodes()) + "1: 2\n");
+  EXPECT_TRUE(throwsInputError([&] { readStereoCalibration(file()); }, file(),
+                               {"node name", "must begin every line"}));
 }
 
 TEST_F(StereoCalibrationTest, TopLevelIsAList) {
