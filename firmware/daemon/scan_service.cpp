@@ -618,11 +618,11 @@ json ScanService::installCalibration(std::string_view camera, std::string_view b
     throw ServiceError(422,
                        std::string("calibration: ") + e.what() + " (board " + board_name_ + ")");
   }
-  const json info = {{"installed", true},
-                     {"bytes", bytes.size()},
-                     {"width", calib->size().width},
-                     {"height", calib->size().height},
-                     {"phase_source", toString(phaseChoiceOf(calib->info().phase_source))}};
+  json info = {{"installed", true},
+               {"bytes", bytes.size()},
+               {"width", calib->size().width},
+               {"height", calib->size().height},
+               {"phase_source", toString(phaseChoiceOf(calib->info().phase_source))}};
   {
     std::lock_guard install(calibration_mutex_);
     store_.installCalibration(name, span);

@@ -123,6 +123,8 @@ void ScanStore::load() {
       std::error_code ec;
       fs::remove_all(aside, ec);
       fs::rename(entry.path(), aside, ec);
+      // One log line per broken scan found at startup: not a hot path.
+      // NOLINTNEXTLINE(performance-inefficient-string-concatenation)
       logWarn("scan " + name + " skipped: " + fault + "; moved to " + aside.string() +
               (ec ? " failed: " + ec.message() : ""));
       continue;
@@ -133,7 +135,7 @@ void ScanStore::load() {
 
 fs::path ScanStore::beginScan(const std::string& id) {
   if (!isValidScanId(id)) throw std::invalid_argument("not a scan id: '" + id + "'");
-  const fs::path partial = scansDir() / (std::string(kPartialPrefix) + id);
+  fs::path partial = scansDir() / (std::string(kPartialPrefix) + id);
   fs::remove_all(partial);
   fs::create_directory(partial);
   return partial;
@@ -170,6 +172,7 @@ std::vector<std::string> ScanStore::orderLocked() const {
     keys.emplace_back(e.scan.value("created", std::string()), id);
   std::sort(keys.begin(), keys.end());
   std::vector<std::string> ids;
+  ids.reserve(keys.size());
   for (auto& k : keys)
     ids.push_back(std::move(k.second));
   return ids;

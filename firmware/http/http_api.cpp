@@ -19,6 +19,7 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <system_error>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -166,6 +167,8 @@ ssize_t sseRead(void* cls, std::uint64_t /*pos*/, char* buf, std::size_t max) {
   std::lock_guard lock(client->mutex);
   if (!client->pending.empty()) {
     const std::size_t n = std::min(max, client->pending.size());
+    // A chunk of the byte stream, not a C string: no terminator wanted.
+    // NOLINTNEXTLINE(bugprone-not-null-terminated-result)
     std::memcpy(buf, client->pending.data(), n);
     client->pending.erase(0, n);
     return static_cast<ssize_t>(n);
@@ -309,7 +312,8 @@ void ApiServer::start() {
                             MHD_OPTION_UNESCAPE_CALLBACK, &unescape, this, MHD_OPTION_END);
   if (daemon == nullptr) {
     throw std::runtime_error("http: cannot listen on " + options.address + " port " +
-                             std::to_string(options.port) + ": " + std::strerror(errno));
+                             std::to_string(options.port) + ": " +
+                             std::error_code(errno, std::generic_category()).message());
   }
   const MHD_DaemonInfo* info = MHD_get_daemon_info(daemon, MHD_DAEMON_INFO_BIND_PORT);
   bound_port = info != nullptr ? info->port : options.port;
