@@ -78,7 +78,12 @@ TEST(DaemonEndpoint, OversizedRequestsAreRefusedWithoutMemoryGrowth) {
         expected = 413;
         break;
     }
-    if (r.status != expected) {
+    // A body refused before it is read may also end with the connection
+    // closed while the client still sends it (the refusal comes first and
+    // libmicrohttpd closes without draining): refused all the same.
+    const bool closed_while_sending =
+        r.status == 0 && expected == 413 && r.curl_error == curl_easy_strerror(CURLE_SEND_ERROR);
+    if (r.status != expected && !closed_while_sending) {
       if (wrong++ == 0) first_wrong = std::to_string(i) + ": " + r.describe();
     }
   };
