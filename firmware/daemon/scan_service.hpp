@@ -108,7 +108,7 @@ class ScanService final : public HeadService {
   std::unique_ptr<drivers::Board> board_;
   std::optional<std::filesystem::path> board_scene_;
   mutable std::mutex acquisition_mutex_;  // guards acquisition_ against abort(), status()
-  std::mutex calibration_mutex_;  // one calibration install at a time
+  std::mutex calibration_mutex_;          // one calibration install at a time
   std::unique_ptr<Acquisition> acquisition_;
 
   mutable std::mutex mutex_;

@@ -16,9 +16,9 @@
 // different NaN bits for the same invalid operation, and which pixels are
 // invalid is compared bit for bit through the invalid masks.
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -129,9 +129,8 @@ std::int64_t phaseHigh(int x, int y) {
 }
 
 cv::Mat frame(FringeSet set, const FringeSetGeometry& g, int k, Xorshift& rng) {
-  const auto delta = static_cast<std::int64_t>(
-      std::llround(65536.0 * (g.stage_deg[static_cast<std::size_t>(k)] - g.stage_deg[0]) /
-                   g.period_deg));
+  const auto delta = static_cast<std::int64_t>(std::llround(
+      65536.0 * (g.stage_deg[static_cast<std::size_t>(k)] - g.stage_deg[0]) / g.period_deg));
   cv::Mat img(kHeight, kWidth, CV_16UC1);
   const int full = (1 << kBitDepth) - 1;
   for (int y = 0; y < kHeight; ++y) {
@@ -142,8 +141,7 @@ cv::Mat frame(FringeSet set, const FringeSetGeometry& g, int k, Xorshift& rng) {
       const int b = x < 20 ? 20 : (x >= 300 ? 2600 : 1200);  // dark | bright | normal
       const std::int32_t c = sinQ15(static_cast<std::uint32_t>(phi - delta + 16384));  // cos
       const std::int64_t v = a + (static_cast<std::int64_t>(b) * c) / 32768 + rng.noise(6);
-      img.at<std::uint16_t>(y, x) =
-          static_cast<std::uint16_t>(v < 0 ? 0 : (v > full ? full : v));
+      img.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(v < 0 ? 0 : (v > full ? full : v));
     }
   }
   return img;
@@ -166,7 +164,8 @@ QuasiCalibration calibration(const cv::Mat& fused) {
       for (int c = 0; c < 4; ++c) {
         p.x[c] = static_cast<float>(rng.noise(4096)) / 256.0f;
         p.y[c] = static_cast<float>(rng.noise(4096)) / 256.0f;
-        p.z[c] = 400.0f / static_cast<float>(1 << (2 * c)) + static_cast<float>(rng.noise(512)) / 1024.0f;
+        p.z[c] = 400.0f / static_cast<float>(1 << (2 * c)) +
+                 static_cast<float>(rng.noise(512)) / 1024.0f;
       }
       if ((x + y) % 97 == 0) valid[i] = 0;
     }
