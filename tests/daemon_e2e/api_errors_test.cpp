@@ -251,25 +251,10 @@ TEST(DaemonLimits, CalibrationOverTheConfiguredLimitIs413) {
 // the daemon's own): one scan's outputs (~36 bytes a pixel, 2.9 MB at
 // 320×256) do not fit, so the scan is refused before it starts.
 TEST(DaemonLimits, NoRoomOnTheDiskIs507) {
-  const fs::path unshare = "/usr/bin/unshare";
-  TempDir probe;
-  const bool can_mount =
-      fs::exists(unshare) &&
-      std::system(("/usr/bin/unshare --mount --propagation private /bin/sh -c 'mount -t tmpfs "
-                   "-o size=1m tmpfs " +
-                   probe.path().string() + "' >/dev/null 2>&1")
-                      .c_str()) == 0;
-  if (!can_mount) GTEST_SKIP() << "no permission to mount a tmpfs in a mount namespace";
+  if (!canMountTmpfs()) GTEST_SKIP() << "no permission to mount a tmpfs in a mount namespace";
   DaemonSetup setup({}, /*calibrate=*/false);
   // Mount over the daemon's data directory, then run cylscand there.
-  setup.wrapper = {unshare.string(),
-                   "--mount",
-                   "--propagation",
-                   "private",
-                   "/bin/sh",
-                   "-c",
-                   "mount -t tmpfs -o size=1m tmpfs \"$0\" && exec \"$@\"",
-                   "{data}"};
+  setup.wrapper = dataOnTmpfs("1m");
   QuickDaemon daemon(std::move(setup));
   const HttpClient& client = daemon.client();
   const json status = client.get("/api/v1/status").json();

@@ -333,24 +333,9 @@ TEST(DaemonFaults, CalibrationReplacedByGarbage) {
 // gone, the earlier scan whole, the outputs safe; once the filler is gone a
 // scan succeeds again.
 TEST(DaemonFaults, DiskFillsWhileAScanIsWritten) {
-  const fs::path unshare = "/usr/bin/unshare";
-  TempDir probe;
-  const bool can_mount =
-      fs::exists(unshare) &&
-      std::system(("/usr/bin/unshare --mount --propagation private /bin/sh -c 'mount -t tmpfs "
-                   "-o size=1m tmpfs " +
-                   probe.path().string() + "' >/dev/null 2>&1")
-                      .c_str()) == 0;
-  if (!can_mount) GTEST_SKIP() << "no permission to mount a tmpfs in a mount namespace";
+  if (!canMountTmpfs()) GTEST_SKIP() << "no permission to mount a tmpfs in a mount namespace";
   DaemonSetup setup;
-  setup.wrapper = {unshare.string(),
-                   "--mount",
-                   "--propagation",
-                   "private",
-                   "/bin/sh",
-                   "-c",
-                   "mount -t tmpfs -o size=64m tmpfs \"$0\" && exec \"$@\"",
-                   "{data}"};
+  setup.wrapper = dataOnTmpfs("64m");
   QuickDaemon daemon(std::move(setup));
   const HttpClient& client = daemon.client();
   const std::string good_id = startScan(client, kSmallScan);

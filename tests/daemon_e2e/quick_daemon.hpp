@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -62,6 +63,28 @@ struct DaemonSetup {
   // A board folder instead of the fixture's (e.g. a copy with [faults]).
   fs::path board;
 };
+
+// Whether this machine lets a test mount a tmpfs in a mount namespace of
+// its own (unshare), and the wrapper that runs cylscand with its data
+// directory on a tmpfs of `size` (e.g. "1m") there.
+inline bool canMountTmpfs() {
+  TempDir probe;
+  return fs::exists("/usr/bin/unshare") &&
+         std::system(("/usr/bin/unshare --mount --propagation private /bin/sh -c 'mount -t tmpfs "
+                      "-o size=1m tmpfs " +
+                      probe.path().string() + "' >/dev/null 2>&1")
+                         .c_str()) == 0;
+}
+inline std::vector<std::string> dataOnTmpfs(const std::string& size) {
+  return {"/usr/bin/unshare",
+          "--mount",
+          "--propagation",
+          "private",
+          "/bin/sh",
+          "-c",
+          "mount -t tmpfs -o size=" + size + " tmpfs \"$0\" && exec \"$@\"",
+          "{data}"};
+}
 
 // One daemon: `data` is its data directory (kept across restart()).
 class QuickDaemon {
