@@ -40,6 +40,28 @@ std::optional<std::string> cameraNameFault(std::string_view name) {
   return std::nullopt;
 }
 
+// Where a camera's set is in capture.json: "sets.high" or "camera_sets.cam90.high".
+std::string setWhere(std::string_view camera, FringeSetId id, bool own = true) {
+  if (!own) return "sets." + std::string(toString(id));
+  return "camera_sets." + std::string(camera) + "." + std::string(toString(id));
+}
+
+std::optional<std::string> setFault(const FringeSetInfo& set, const std::string& where) {
+  if (!std::isfinite(set.period_deg) || set.period_deg <= 0) {
+    return inQuotes(where + ".period_deg") + " must be a finite number > 0";
+  }
+  if (set.stage_deg.size() < static_cast<std::size_t>(kMinFramesPerSet)) {
+    return "set " + inQuotes(where) + " has " + std::to_string(set.stage_deg.size()) +
+           " frames; at least " + std::to_string(kMinFramesPerSet) + " are needed";
+  }
+  for (std::size_t k = 0; k < set.stage_deg.size(); ++k) {
+    if (!std::isfinite(set.stage_deg[k])) {
+      return inQuotes(where + ".stage_deg[" + std::to_string(k) + "]") + " is not finite";
+    }
+  }
+  return std::nullopt;
+}
+
 // Fault of the info itself (shared by reader and writer), in capture.json terms.
 std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
   if (info.cameras.empty()) return "\"cameras\" is empty (it must contain \"main\")";
@@ -57,19 +79,14 @@ std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
     return "\"cameras\" does not contain \"main\"";
   }
   for (const FringeSetId id : kFringeSets) {
-    const FringeSetInfo& set = info.set(id);
-    const std::string where = "sets." + std::string(toString(id));
-    if (!std::isfinite(set.period_deg) || set.period_deg <= 0) {
-      return inQuotes(where + ".period_deg") + " must be a finite number > 0";
+    if (auto fault = setFault(info.set(id), "sets." + std::string(toString(id)))) return fault;
+  }
+  for (const auto& [camera, sets] : info.camera_sets) {
+    if (std::find(info.cameras.begin(), info.cameras.end(), camera) == info.cameras.end()) {
+      return "\"camera_sets\" has camera " + inQuotes(camera) + ", which is not in \"cameras\"";
     }
-    if (set.stage_deg.size() < static_cast<std::size_t>(kMinFramesPerSet)) {
-      return "set " + inQuotes(toString(id)) + " has " + std::to_string(set.stage_deg.size()) +
-             " frames; at least " + std::to_string(kMinFramesPerSet) + " are needed";
-    }
-    for (std::size_t k = 0; k < set.stage_deg.size(); ++k) {
-      if (!std::isfinite(set.stage_deg[k])) {
-        return inQuotes(where + ".stage_deg[" + std::to_string(k) + "]") + " is not finite";
-      }
+    for (const FringeSetId id : kFringeSets) {
+      if (auto fault = setFault(sets.set(id), setWhere(camera, id))) return fault;
     }
   }
   return std::nullopt;
@@ -86,24 +103,38 @@ class CaptureJsonParser {
     checkFormat(doc);
     info.cameras = cameras(doc);
     readSets(doc, info);
+    readCameraSets(doc, info);
     info.extra = doc;
     info.extra.erase("format");
     info.extra.erase("cameras");
     info.extra.erase("sets");
-    json set_extras = json::object();
-    for (const FringeSetId id : kFringeSets) {
-      json extra = doc.at("sets").at(std::string(toString(id)));
-      extra.erase("period_deg");
-      extra.erase("stage_deg");
-      if (!extra.empty()) set_extras[std::string(toString(id))] = std::move(extra);
+    info.extra.erase("camera_sets");
+    if (json extras = setExtras(doc.at("sets")); !extras.empty()) info.extra["sets"] = extras;
+    if (const auto own = doc.find("camera_sets"); own != doc.end()) {
+      json camera_extras = json::object();
+      for (const auto& [camera, sets] : own->items()) {
+        if (json extras = setExtras(sets); !extras.empty()) camera_extras[camera] = extras;
+      }
+      if (!camera_extras.empty()) info.extra["camera_sets"] = std::move(camera_extras);
     }
-    if (!set_extras.empty()) info.extra["sets"] = std::move(set_extras);
     if (auto fault = captureInfoFault(info)) fail(*fault);  // the rules shared with the writer
     return info;
   }
 
  private:
   [[noreturn]] void fail(const std::string& fault) const { throw InputError(file_, fault); }
+
+  // The unknown fields of a {"high": {...}, "low": {...}} object, by set.
+  static json setExtras(const json& sets) {
+    json out = json::object();
+    for (const FringeSetId id : kFringeSets) {
+      json extra = sets.at(std::string(toString(id)));
+      extra.erase("period_deg");
+      extra.erase("stage_deg");
+      if (!extra.empty()) out[std::string(toString(id))] = std::move(extra);
+    }
+    return out;
+  }
 
   void checkFormat(const json& doc) const {
     const auto it = doc.find("format");
@@ -135,18 +166,42 @@ class CaptureJsonParser {
     const auto it = doc.find("sets");
     if (it == doc.end()) fail("missing \"sets\" (expected \"high\" and \"low\")");
     if (!it->is_object()) fail("\"sets\" is a " + jsonTypeName(*it) + ", not an object");
-    for (const auto& [name, value] : it->items()) {
+    readSetPair(*it, "sets", info.high, info.low);
+  }
+
+  // The extension "camera_sets": {camera: {"high": {...}, "low": {...}}}, each
+  // camera one of "cameras", each with both sets, validated like "sets".
+  void readCameraSets(const json& doc, CaptureInfo& info) const {
+    const auto it = doc.find("camera_sets");
+    if (it == doc.end()) return;
+    if (!it->is_object()) fail("\"camera_sets\" is a " + jsonTypeName(*it) + ", not an object");
+    for (const auto& [camera, value] : it->items()) {
+      if (std::find(info.cameras.begin(), info.cameras.end(), camera) == info.cameras.end()) {
+        fail("\"camera_sets\" has camera " + inQuotes(camera) + ", which is not in \"cameras\"");
+      }
+      const std::string where = "camera_sets." + camera;
+      if (!value.is_object()) {
+        fail(inQuotes(where) + " is a " + jsonTypeName(value) + ", not an object");
+      }
+      CameraSets& sets = info.camera_sets[camera];
+      readSetPair(value, where, sets.high, sets.low);
+    }
+  }
+
+  // Exactly "high" and "low" in `sets` (the object at `where`).
+  void readSetPair(const json& sets, const std::string& where, FringeSetInfo& high,
+                   FringeSetInfo& low) const {
+    for (const auto& [name, value] : sets.items()) {
       if (name != toString(FringeSetId::High) && name != toString(FringeSetId::Low)) {
-        fail("unknown fringe set " + inQuotes(name) +
-             " in \"sets\" (expected exactly \"high\" and "
-             "\"low\")");
+        fail("unknown fringe set " + inQuotes(name) + " in " + inQuotes(where) +
+             " (expected exactly \"high\" and \"low\")");
       }
     }
     for (const FringeSetId id : kFringeSets) {
       const std::string name(toString(id));
-      const auto set = it->find(name);
-      if (set == it->end()) fail("missing set " + inQuotes(name) + " in \"sets\"");
-      info.set(id) = readSet(*set, "sets." + name);
+      const auto set = sets.find(name);
+      if (set == sets.end()) fail("missing set " + inQuotes(name) + " in " + inQuotes(where));
+      (id == FringeSetId::High ? high : low) = readSet(*set, where + "." + name);
     }
   }
 
@@ -237,6 +292,11 @@ std::string_view toString(FringeSetId id) {
   return id == FringeSetId::High ? "high" : "low";
 }
 
+const FringeSetInfo& CaptureInfo::setOf(std::string_view camera, FringeSetId id) const {
+  const auto it = camera_sets.find(camera);
+  return it == camera_sets.end() ? set(id) : it->second.set(id);
+}
+
 std::string frameFileName(int k, int n) {
   if (n < 1 || k < 0 || k >= n) {
     throw std::invalid_argument("frameFileName: frame " + std::to_string(k) +
@@ -263,22 +323,26 @@ CaptureBundleReader::CaptureBundleReader(fs::path dir, FrameLimits limits)
     std::optional<cv::Size> first;
     fs::path first_path;
     for (const FringeSetId id : kFringeSets) {
-      const std::size_t n = info_.set(id).stage_deg.size();
+      const std::size_t n = info_.setOf(camera, id).stage_deg.size();
+      const std::string where = setWhere(camera, id, info_.hasOwnSets(camera));
       const fs::path set_dir = dir_ / camera / std::string(toString(id));
       for (const auto& [name, index] : frameFilesIn(set_dir)) {
         if (index >= n) {
-          throw InputError(json_file,
-                           "fewer angles than frames: " +
-                               inQuotes("sets." + std::string(toString(id)) + ".stage_deg") +
-                               " lists " + std::to_string(n) + " angles but frame " +
-                               (fs::path(camera) / toString(id) / name).string() + " exists");
+          throw InputError(
+              json_file, "fewer angles than frames: " + inQuotes(where + ".stage_deg") + " lists " +
+                             std::to_string(n) + " angles but frame " +
+                             (fs::path(camera) / toString(id) / name).string() + " exists");
         }
       }
       for (int k = 0; k < static_cast<int>(n); ++k) {
         const fs::path frame = framePath(camera, id, k);
         if (!fs::exists(frame, ec)) {
-          throw InputError(frame, "frame is missing (capture.json lists " + std::to_string(n) +
-                                      " frames in set " + inQuotes(toString(id)) + ")");
+          throw InputError(
+              frame, "frame is missing (capture.json lists " + std::to_string(n) +
+                         " frames in set " + inQuotes(toString(id)) +
+                         (info_.hasOwnSets(camera) ? " of " + inQuotes("camera_sets." + camera)
+                                                   : std::string()) +
+                         ")");
         }
         const PngHeader header = checkFrameHeader(frame, limits_);
         const cv::Size size(header.width, header.height);
@@ -304,7 +368,7 @@ int CaptureBundleReader::frameCount(FringeSetId set) const {
   return static_cast<int>(info_.set(set).stage_deg.size());
 }
 
-fs::path CaptureBundleReader::framePath(std::string_view camera, FringeSetId set, int k) const {
+void CaptureBundleReader::requireCamera(std::string_view camera) const {
   if (std::find(info_.cameras.begin(), info_.cameras.end(), camera) == info_.cameras.end()) {
     std::string list;
     for (const std::string& name : info_.cameras)
@@ -312,7 +376,15 @@ fs::path CaptureBundleReader::framePath(std::string_view camera, FringeSetId set
     throw InputError(dir_ / kCaptureJson,
                      "the bundle has no camera " + inQuotes(camera) + " (cameras: " + list + ")");
   }
-  const int n = frameCount(set);
+}
+
+int CaptureBundleReader::frameCount(std::string_view camera, FringeSetId set) const {
+  requireCamera(camera);
+  return static_cast<int>(info_.setOf(camera, set).stage_deg.size());
+}
+
+fs::path CaptureBundleReader::framePath(std::string_view camera, FringeSetId set, int k) const {
+  const int n = frameCount(camera, set);
   if (k < 0 || k >= n) {
     throw std::out_of_range("frame " + std::to_string(k) + " of set " + inQuotes(toString(set)) +
                             " is outside 0.." + std::to_string(n - 1) + " in " + dir_.string());
@@ -373,12 +445,31 @@ CaptureBundleWriter::CaptureBundleWriter(fs::path dir, CaptureInfo info)
                                   "\"high\" and \"low\"");
     }
   }
+  if (const auto own = info_.extra.find("camera_sets"); own != info_.extra.end()) {
+    bool ok = own->is_object();
+    if (ok) {
+      for (const auto& [camera, sets] : own->items()) {
+        ok = ok && info_.hasOwnSets(camera) && sets.is_object();
+        if (!ok) break;
+        for (const auto& [name, value] : sets.items()) {
+          ok = ok && value.is_object() &&
+               (name == toString(FringeSetId::High) || name == toString(FringeSetId::Low));
+        }
+      }
+    }
+    if (!ok) {
+      throw std::invalid_argument("capture bundle " + dir_.string() +
+                                  ": CaptureInfo::extra[\"camera_sets\"] may only hold objects "
+                                  "\"high\" and \"low\" of cameras in CaptureInfo::camera_sets");
+    }
+  }
   fs::create_directories(dir_);
   fs::remove(json_file);  // the bundle is being rewritten: not whole until commit()
   for (const std::string& camera : info_.cameras) {
     CameraProgress& progress = progress_[camera];
     for (const FringeSetId id : kFringeSets) {
-      progress.written[static_cast<std::size_t>(id)].assign(info_.set(id).stage_deg.size(), false);
+      progress.written[static_cast<std::size_t>(id)].assign(
+          info_.setOf(camera, id).stage_deg.size(), false);
     }
   }
 }
@@ -388,7 +479,7 @@ void CaptureBundleWriter::writeFrame(std::string_view camera, FringeSetId set, i
   const auto it = progress_.find(camera);
   const std::string where = "capture bundle " + dir_.string() + ", camera " + inQuotes(camera);
   if (it == progress_.end()) throw std::invalid_argument(where + ": not in CaptureInfo::cameras");
-  const int n = static_cast<int>(info_.set(set).stage_deg.size());
+  const int n = static_cast<int>(info_.setOf(camera, set).stage_deg.size());
   if (k < 0 || k >= n) {
     throw std::invalid_argument(where + ": frame " + std::to_string(k) + " is outside set " +
                                 inQuotes(toString(set)) + " of " + std::to_string(n) + " frames");
@@ -446,6 +537,20 @@ void CaptureBundleWriter::commit() {
     if (!set.is_object()) set = json::object();
     set["period_deg"] = info_.set(id).period_deg;
     set["stage_deg"] = info_.set(id).stage_deg;
+  }
+  if (!info_.camera_sets.empty()) {
+    json& own = doc["camera_sets"];
+    if (!own.is_object()) own = json::object();
+    for (const auto& [camera, camera_sets] : info_.camera_sets) {
+      json& sets_of = own[camera];
+      if (!sets_of.is_object()) sets_of = json::object();
+      for (const FringeSetId id : kFringeSets) {
+        json& set = sets_of[std::string(toString(id))];
+        if (!set.is_object()) set = json::object();
+        set["period_deg"] = camera_sets.set(id).period_deg;
+        set["stage_deg"] = camera_sets.set(id).stage_deg;
+      }
+    }
   }
   writeFileAtomically(dir_ / kCaptureJson, doc.dump(2) + "\n");
 }

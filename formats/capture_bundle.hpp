@@ -23,10 +23,26 @@ struct FringeSetInfo {
   std::vector<double> stage_deg;  // executed stage angle of each frame
 };
 
-struct CaptureInfo {
-  std::vector<std::string> cameras;  // "main" first; "aux" for calibration bundles
+// A camera's own two sets (the extension field "camera_sets"): a ring scan's
+// cameras see the same stage angles in different roles, so a camera whose
+// sets differ from the top-level ones (main's) carries its own.
+struct CameraSets {
   FringeSetInfo high;
   FringeSetInfo low;
+  const FringeSetInfo& set(FringeSetId id) const { return id == FringeSetId::High ? high : low; }
+  FringeSetInfo& set(FringeSetId id) { return id == FringeSetId::High ? high : low; }
+};
+
+struct CaptureInfo {
+  std::vector<std::string> cameras;  // "main" first; "aux" for calibration bundles
+  FringeSetInfo high;                // the top-level sets: main's
+  FringeSetInfo low;
+  // Extension (spec §1 readers ignore it): the cameras whose sets are not the
+  // top-level ones, in capture.json as
+  //   "camera_sets": {"cam90": {"high": {"period_deg", "stage_deg"}, "low": {...}}}.
+  // Every key is a camera of `cameras`; each has both sets. Extras inside those
+  // set objects stay in `extra` under "camera_sets" → camera → set.
+  std::map<std::string, CameraSets, std::less<>> camera_sets;
   // Unknown/extra fields, kept on write. Mirrors the layout of capture.json
   // without the known fields: top-level extras at the top, extras inside a set
   // object under "sets" → "high"/"low" (e.g. {"exposure_us": 800,
@@ -35,6 +51,11 @@ struct CaptureInfo {
 
   const FringeSetInfo& set(FringeSetId id) const { return id == FringeSetId::High ? high : low; }
   FringeSetInfo& set(FringeSetId id) { return id == FringeSetId::High ? high : low; }
+  // A camera's own set: its "camera_sets" entry when it has one, else the top-level set.
+  const FringeSetInfo& setOf(std::string_view camera, FringeSetId id) const;
+  bool hasOwnSets(std::string_view camera) const {
+    return camera_sets.find(camera) != camera_sets.end();
+  }
 };
 
 // Limits applied before any frame is decoded.
@@ -55,9 +76,11 @@ class CaptureBundleReader {
   const std::filesystem::path& dir() const { return dir_; }
   const CaptureInfo& info() const { return info_; }
   bool hasCamera(std::string_view camera) const;
-  int frameCount(FringeSetId set) const;
+  int frameCount(FringeSetId set) const;  // of the top-level set (main's)
+  // Of the camera's own set (info().setOf); InputError for an unknown camera.
+  int frameCount(std::string_view camera, FringeSetId set) const;
   // InputError (naming capture.json) for a camera the bundle does not have;
-  // std::out_of_range for k outside [0, frameCount(set)).
+  // std::out_of_range for k outside [0, frameCount(camera, set)).
   std::filesystem::path framePath(std::string_view camera, FringeSetId set, int k) const;
   // The size all frames of the camera share (checked when the bundle was opened).
   cv::Size frameSize(std::string_view camera) const;
@@ -68,6 +91,8 @@ class CaptureBundleReader {
   cv::Mat readFrame(std::string_view camera, FringeSetId set, int k) const;
 
  private:
+  void requireCamera(std::string_view camera) const;  // InputError naming capture.json
+
   std::filesystem::path dir_;
   FrameLimits limits_;
   CaptureInfo info_;
