@@ -154,6 +154,12 @@ CameraProfile readCamera(TableReader r, const GpioProfile& gpio) {
   c.config.exposure_us = r.nonNegative("exposure_us", 0.0);
   c.config.gain = r.positive("gain", 1.0);
   c.frame_rate_hz = r.positive("frame_rate_hz", c.frame_rate_hz);
+  if (r.has("azimuth_deg")) {
+    const std::array<double, 2> a = r.vec2("azimuth_deg", {0, 0});
+    r.require(std::isfinite(a[0]) && std::isfinite(a[1]) && a[0] < a[1] && a[1] - a[0] < 360,
+              "azimuth_deg", "must be [lo, hi] with lo < hi and hi - lo < 360");
+    c.azimuth_deg = a;
+  }
   const std::string trigger = r.string("trigger", "gpio");
   if (trigger == "gpio") {
     c.config.trigger = TriggerMode::GpioPulse;
@@ -212,6 +218,25 @@ ScanProfile readScan(TableReader r) {
   s.period_low_deg = r.positive("period_low_deg", s.period_low_deg);
   r.require(s.period_low_deg != s.period_high_deg, "period_low_deg",
             "must differ from period_high_deg (two wavelengths)");
+  const std::string plan = r.string("plan", "sets");
+  if (plan == "sets") {
+    s.plan = PlanKind::Sets;
+  } else if (plan == "ring") {
+    s.plan = PlanKind::Ring;
+  } else {
+    r.fail("plan", "unknown plan '" + plan + "' (\"sets\" or \"ring\")");
+  }
+  s.step_deg = r.nonNegative("step_deg", s.step_deg);
+  r.require(s.plan == PlanKind::Ring || !r.has("step_deg"), "step_deg",
+            "only with plan = \"ring\" (the sets plan steps by period / frames)");
+  s.high_half_start_deg = r.number("high_half_start_deg", s.high_half_start_deg);
+  r.require(s.high_half_start_deg >= 0 && s.high_half_start_deg < 360, "high_half_start_deg",
+            "must be in [0, 360)");
+  if (s.plan == PlanKind::Ring) {
+    r.require(!r.has("frames_low") || s.frames_low == s.frames_high, "frames_low",
+              "must equal frames_high with plan = \"ring\" (both sweeps have the same frames)");
+    s.frames_low = s.frames_high;
+  }
   r.finish();
   return s;
 }
@@ -235,6 +260,10 @@ std::string_view toString(CameraBackendKind backend) {
       return "libcamera";
   }
   return "?";
+}
+
+std::string_view toString(PlanKind plan) {
+  return plan == PlanKind::Ring ? "ring" : "sets";
 }
 
 std::string_view toString(TriggerMode trigger) {
@@ -299,6 +328,18 @@ BoardProfile parseBoardProfile(const toml::table& table, const fs::path& file) {
   }
 
   if (const toml::table* t = root.table("scan")) b.scan = readScan(TableReader(*t, f, "scan"));
+  if (b.scan.plan == PlanKind::Ring) {
+    for (std::size_t i = 0; i < b.cameras.size(); ++i) {
+      if (!b.cameras[i].azimuth_deg) {
+        const toml::table* t = cams->get(i)->as_table();
+        TableReader(*t, f, "camera[" + std::to_string(i) + "]")
+            .fail("azimuth_deg",
+                  "is required with [scan] plan = \"ring\": the projector azimuths [lo, hi] "
+                  "of camera '" +
+                      b.cameras[i].name + "''s working volume");
+      }
+    }
+  }
 
   if (const toml::table* t = root.table("sim")) {
     TableReader r(*t, f, "sim");

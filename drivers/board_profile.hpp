@@ -3,6 +3,7 @@
 // and, for the virtual head, its model. Format: board/README.md.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -40,9 +41,19 @@ struct CameraProfile {
   std::string trigger_line;  // the [gpio] trigger key when config.trigger is GpioPulse
   double trigger_pulse_us = 10.0;
   double frame_rate_hz = 30.0;  // the most frames a second it delivers (continuous mode's pace)
+  // The projector azimuths [lo, hi] (degrees about the projector axis) that its
+  // working volume spans: what the ring planner needs ([scan] plan = "ring").
+  std::optional<std::array<double, 2>> azimuth_deg;
 };
 
 enum class ScanMode { StopAndGo, Continuous };
+
+// How the stage angles of the two sets are planned. Sets: each set at its own
+// start in steps of θ/N (one camera, or cameras that face the same half).
+// Ring: two sweeps 180° apart in one common step for every camera of a 360°
+// head; each camera takes the high or the low set from a sweep according to
+// the half of the cylinder it faces (firmware/scan_plan.hpp).
+enum class PlanKind { Sets, Ring };
 
 // [scan]: defaults of the acquisition loop. The start angles are stage angles;
 // the defaults put the virtual head's main field of view in the middle of the
@@ -60,6 +71,11 @@ struct ScanProfile {
   // The projector's slot intervals: θh (high set) and θl (low set).
   double period_high_deg = 5.0;
   double period_low_deg = 5.625;
+  PlanKind plan = PlanKind::Sets;
+  // Ring: the common frame step (0: the planner chooses it) and the wall angle
+  // where the high slots' half begins (h0: the high slots cover [h0, h0 + 180)).
+  double step_deg = 0.0;
+  double high_half_start_deg = 0.0;
 };
 
 // [sim]: the virtual head.
@@ -88,6 +104,7 @@ struct BoardProfile {
 std::string_view toString(CameraBackendKind backend);
 std::string_view toString(TriggerMode trigger);
 std::string_view toString(ScanMode mode);
+std::string_view toString(PlanKind plan);
 
 // Reads `dir`/board.toml (or the file itself when given one). Every fault
 // throws sim::ConfigError (a std::invalid_argument) naming the file, the line

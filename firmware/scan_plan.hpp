@@ -9,7 +9,11 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <optional>
+#include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "drivers/board_profile.hpp"
@@ -17,6 +21,14 @@
 #include "formats/capture_bundle.hpp"
 
 namespace cylscan::firmware {
+
+// A camera's working volume in projector azimuth (degrees about the projector
+// axis; at stage angle ρ the wall angle lighting azimuth a is β = a − ρ).
+struct CameraAzimuth {
+  std::string camera;
+  double lo_deg = 0;
+  double hi_deg = 0;
+};
 
 struct ScanOptions {
   int frames_high = 25;
@@ -39,31 +51,96 @@ struct ScanOptions {
   int realtime_priority = 80;
   bool lock_memory = true;
   std::vector<std::string> cameras{"main"};
+  // The ring plan of a 360° head (drivers::PlanKind::Ring): both sweeps step by
+  // `step_deg` (0: the planner chooses it), the high slots cover wall angles
+  // [h0, h0 + 180), and every camera of `cameras` has its azimuths here.
+  drivers::PlanKind plan = drivers::PlanKind::Sets;
+  double step_deg = 0;
+  double high_half_start_deg = 0;
+  std::vector<CameraAzimuth> azimuths;
+  // The least distance (degrees of wall angle) a camera's working volume keeps
+  // from a half boundary during its sweeps and from an equivalent-period wrap
+  // at its set's first frame: the slots' blur and the phase noise need room.
+  double ring_margin_deg = 1.0;
 };
 
 // The defaults of a board profile ([scan], [stage] and the cameras).
 ScanOptions scanOptionsFrom(const drivers::BoardProfile& profile);
 
 struct SetPlan {
+  // The set this motion set is (sets plan), or the set it is for main (ring plan).
   formats::FringeSetId set = formats::FringeSetId::High;
-  double period_deg = 0;
+  double period_deg = 0;                // that set's period θ
+  double step_deg = 0;                  // the nominal frame step: θ/N (sets), Δ (ring)
   std::vector<std::int64_t> positions;  // stage steps of each frame (absolute, from home)
 };
 
+// What the ring planner chose for one camera.
+struct RingCamera {
+  std::string camera;
+  formats::FringeSetId first_sweep_set = formats::FringeSetId::High;  // the set sweep 1 gives it
+  double window_margin_deg = 0;  // to the nearest equivalent-period wrap, at its sets' first frames
+  double half_margin_deg = 0;    // to the nearest half boundary, over its sweeps
+};
+
+// The ring plan (issue #10): sweep 1 from `start_deg`, sweep 2 from 180° away,
+// both `frames` frames at `step_steps` motor steps. Cameras facing the high
+// half in sweep 1 take it as their high set and sweep 2 as their low set; the
+// others the other way round. So each set of a camera is stepped by the same
+// Δ, which is 2πΔ/θh per frame for its high set and 2πΔ/θl for its low set:
+// the executed-shift least squares handles both; `noise_gain_*` is the phase
+// noise of that set's shifts over that of N equal shifts over one period
+// (1 = the ideal N-step; the planner picks Δ to make the worse of the two small).
+struct RingLayout {
+  double start_deg = 0;
+  double sweep2_start_deg = 0;
+  std::int64_t step_steps = 0;
+  double step_deg = 0;
+  int frames = 0;
+  double noise_gain_high = 0;
+  double noise_gain_low = 0;
+  std::vector<RingCamera> cameras;
+};
+
 struct ScanPlan {
+  // The two motion sets, in the order the stage runs them. Sets plan: the
+  // high and the low set. Ring plan: sweep 1 (main's high set) and sweep 2
+  // (main's low set).
   SetPlan high;
   SetPlan low;
   double steps_per_deg = 0;
+  double period_high_deg = 5.0;  // θh
+  double period_low_deg = 5.625;
+  std::optional<RingLayout> ring;
+  // Ring: the cameras whose sweep 1 is their low set. Empty for a sets plan.
+  std::set<std::string, std::less<>> swapped;
+
   const SetPlan& set(formats::FringeSetId id) const {
     return id == formats::FringeSetId::High ? high : low;
   }
-  // The executed angles of a set (steps / steps per degree).
+  // The set that a camera's frames of motion set `motion_set` belong to.
+  formats::FringeSetId setOf(std::string_view camera, formats::FringeSetId motion_set) const;
+  // The motion set that holds a camera's set `set` (the inverse of setOf).
+  const SetPlan& motionSetOf(std::string_view camera, formats::FringeSetId set) const;
+  // The executed angles of a set (steps / steps per degree): main's, and a camera's own.
   std::vector<double> anglesDeg(formats::FringeSetId id) const;
+  std::vector<double> anglesDeg(std::string_view camera, formats::FringeSetId set) const;
+  double periodDeg(formats::FringeSetId set) const {
+    return set == formats::FringeSetId::High ? period_high_deg : period_low_deg;
+  }
   int frames() const { return static_cast<int>(high.positions.size() + low.positions.size()); }
 };
 
+// The phase noise of a least-squares fit with these shifts (radians), as a
+// multiple of the noise with the same number of equal shifts over one period
+// (1 for N ≥ 3 equal steps of 2π/N). Infinite when the fit is singular.
+double phaseNoiseGain(const std::vector<double>& shifts_rad);
+
 // std::invalid_argument naming the option when the plan is impossible (N < 3,
-// periods not positive, a frame step below one motor step).
+// periods not positive, a frame step below one motor step). With a ring plan,
+// also naming the camera when no start angle keeps every camera's working
+// volume inside one equivalent period at its sets' first frames and off the
+// half boundaries during its sweeps (or when a camera has no azimuths).
 ScanPlan planScan(const ScanOptions& options, const drivers::StageConfig& stage);
 
 }  // namespace cylscan::firmware

@@ -277,6 +277,39 @@ TEST(BoardProfileFaults, BadScanValues) {
               "unknown mode 'sweep'");
 }
 
+// [scan] plan = "ring" (the 360° head): every camera needs its azimuths.
+TEST(BoardProfile, RingPlanKeys) {
+  TempDir dir;
+  dir.write("board.toml", hardwareGpio() + v4l2Main() +
+                              "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
+                              "step_deg = 0.212\nhigh_half_start_deg = 10.0\n");
+  const BoardProfile p = loadBoardProfile(dir.path());
+  EXPECT_EQ(p.scan.plan, PlanKind::Ring);
+  EXPECT_DOUBLE_EQ(p.scan.step_deg, 0.212);
+  EXPECT_DOUBLE_EQ(p.scan.high_half_start_deg, 10.0);
+  ASSERT_TRUE(p.camera("main").azimuth_deg.has_value());
+  EXPECT_DOUBLE_EQ((*p.camera("main").azimuth_deg)[0], -20.0);
+  EXPECT_EQ(p.scan.frames_low, p.scan.frames_high);
+  EXPECT_EQ(toString(p.scan.plan), "ring");
+}
+
+TEST(BoardProfileFaults, BadRingValues) {
+  TempDir dir;
+  const auto file = dir.path() / "board.toml";
+  const std::string base = hardwareGpio() + v4l2Main();
+  expectFault(profileError(dir, base + "[scan]\nplan = \"ring\"\n"), file, 12,
+              "camera[0].azimuth_deg", "is required with [scan] plan = \"ring\"");
+  expectFault(profileError(dir, base + "azimuth_deg = [5.0, -3.0]\n"), file, 16,
+              "camera[0].azimuth_deg", "lo < hi");
+  expectFault(profileError(dir, base + "[scan]\nplan = \"spiral\"\n"), file, 17, "scan.plan",
+              "unknown plan 'spiral'");
+  expectFault(profileError(dir, base + "[scan]\nstep_deg = 0.2\n"), file, 17, "scan.step_deg",
+              "only with plan = \"ring\"");
+  expectFault(profileError(dir, base + "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
+                                       "frames_high = 25\nframes_low = 20\n"),
+              file, 20, "scan.frames_low", "must equal frames_high");
+}
+
 TEST(BoardProfileFaults, SyntaxError) {
   TempDir dir;
   const auto file = dir.path() / "board.toml";
