@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <optional>
@@ -44,6 +45,20 @@ std::optional<std::string> cloudFault(const PointCloud& cloud) {
       return "property \"" + name + "\" has " + std::to_string(cloud.properties[i].size()) +
              " values for " + std::to_string(cloud.size()) + " points";
     }
+    if (!cloud.property_types.empty() && cloud.property_types[i] == PlyScalar::UInt8) {
+      for (float v : cloud.properties[i]) {
+        if (!(v >= 0 && v <= 255 && v == std::floor(v)))
+          return "uchar property \"" + name + "\" holds " + std::to_string(v);
+      }
+    }
+  }
+  if (!cloud.property_types.empty() && cloud.property_types.size() != cloud.properties.size()) {
+    return std::to_string(cloud.property_types.size()) + " property types for " +
+           std::to_string(cloud.properties.size()) + " properties";
+  }
+  for (const std::string& comment : cloud.comments) {
+    if (!std::all_of(comment.begin(), comment.end(), [](char c) { return c >= ' ' && c < 0x7F; }))
+      return "comment \"" + comment + "\" has control characters";
   }
   return std::nullopt;
 }
@@ -113,6 +128,7 @@ struct Element {
 
 struct Header {
   Encoding encoding = Encoding::BinaryLittleEndian;
+  std::vector<std::string> comments;
   std::vector<Element> elements;
   std::size_t data_offset = 0;
 };
@@ -144,6 +160,7 @@ class PlyParser {
       for (std::size_t e = 1; e < header.elements.size(); ++e)
         skipAscii(header.elements[e], cursor);
       if (cursor.next()) fail("data beyond the elements declared in the header");
+      describe(cloud, header);
       return cloud;
     }
     std::size_t at = header.data_offset;
@@ -155,7 +172,18 @@ class PlyParser {
       fail(std::to_string(data_.size() - at) +
            " bytes of data beyond the elements declared in the header");
     }
+    describe(cloud, header);
     return cloud;
+  }
+
+  // The comments, and which extra properties are uchar.
+  static void describe(PointCloud& cloud, const Header& header) {
+    cloud.comments = header.comments;
+    for (const Property& p : header.elements.front().properties) {
+      if (p.name == "x" || p.name == "y" || p.name == "z") continue;
+      cloud.property_types.push_back(p.type == ScalarType::UInt8 ? PlyScalar::UInt8
+                                                                 : PlyScalar::Float32);
+    }
   }
 
  private:
@@ -182,7 +210,16 @@ class PlyParser {
         fail("header line " + std::to_string(line_number) + " \"" + std::string(line) +
              "\": " + why);
       };
-      if (line_number == 1 || words.empty() || words[0] == "comment" || words[0] == "obj_info") {
+      if (!words.empty() && words[0] == "comment") {
+        const std::size_t text = line.find("comment") + 7;
+        std::string comment(line.substr(std::min(line.size(), text + 1)));
+        while (!comment.empty() && (comment.back() == '\r' || comment.back() == ' '))
+          comment.pop_back();
+        if (words.size() >= 2 && words[1] == "camera") checkCameraComment(words, bad_line);
+        header.comments.push_back(std::move(comment));
+        continue;
+      }
+      if (line_number == 1 || words.empty() || words[0] == "obj_info") {
         continue;
       }
       if (words[0] == "end_header") {
@@ -241,6 +278,18 @@ class PlyParser {
     if (header.elements.empty()) fail("the header declares no \"vertex\" element");
     header.data_offset = at;
     return header;
+  }
+
+  // "comment camera <index> <name>": an index 0..255 and one name word.
+  template <class BadLine>
+  static void checkCameraComment(const std::vector<std::string_view>& words,
+                                 const BadLine& bad_line) {
+    unsigned index = 0;
+    if (words.size() != 4) bad_line("expected \"comment camera <index> <name>\"");
+    const auto [ptr, ec] =
+        std::from_chars(words[2].data(), words[2].data() + words[2].size(), index);
+    if (ec != std::errc() || ptr != words[2].data() + words[2].size() || index > 255)
+      bad_line("the camera index is not an integer 0..255");
   }
 
   void checkVertexElement(const Element& vertex) const {
@@ -445,20 +494,89 @@ void writePly(const fs::path& file, const PointCloud& cloud) {
     throw std::invalid_argument("point cloud " + file.string() + ": " + *fault);
   }
   std::ostringstream header;
-  header << "ply\nformat binary_little_endian 1.0\nelement vertex " << cloud.size()
+  const auto is_uchar = [&](std::size_t p) {
+    return !cloud.property_types.empty() && cloud.property_types[p] == PlyScalar::UInt8;
+  };
+  header << "ply\nformat binary_little_endian 1.0\n";
+  for (const std::string& comment : cloud.comments)
+    header << "comment " << comment << "\n";
+  header << "element vertex " << cloud.size()
          << "\nproperty float x\nproperty float y\nproperty float z\n";
-  for (const std::string& name : cloud.property_names)
-    header << "property float " << name << "\n";
+  for (std::size_t p = 0; p < cloud.property_names.size(); ++p)
+    header << "property " << (is_uchar(p) ? "uchar " : "float ") << cloud.property_names[p] << "\n";
   header << "end_header\n";
   std::string out = header.str();
   out.reserve(out.size() + cloud.size() * 4 * (3 + cloud.properties.size()));
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     for (std::size_t c = 0; c < 3; ++c)
       appendFloatLe(out, cloud.xyz[3 * i + c]);
-    for (const std::vector<float>& property : cloud.properties)
-      appendFloatLe(out, property[i]);
+    for (std::size_t p = 0; p < cloud.properties.size(); ++p) {
+      if (is_uchar(p)) {
+        out.push_back(static_cast<char>(static_cast<std::uint8_t>(cloud.properties[p][i])));
+      } else {
+        appendFloatLe(out, cloud.properties[p][i]);
+      }
+    }
   }
   writeFileAtomically(file, out);
+}
+
+std::vector<std::string> cameraNamesOf(const PointCloud& cloud) {
+  std::vector<std::string> names;
+  for (const std::string& comment : cloud.comments) {
+    const std::vector<std::string_view> words = splitWords(comment);
+    if (words.size() != 3 || words[0] != "camera") continue;
+    std::size_t index = 0;
+    const auto [ptr, ec] =
+        std::from_chars(words[1].data(), words[1].data() + words[1].size(), index);
+    if (ec != std::errc() || index > 255) continue;
+    if (names.size() <= index) names.resize(index + 1);
+    names[index] = std::string(words[2]);
+  }
+  return names;
+}
+
+void appendCameraCloud(PointCloud& merged, const PointCloud& part, std::size_t index,
+                       const std::string& camera) {
+  if (index > 255)
+    throw std::invalid_argument("merged cloud: camera index " + std::to_string(index) + " > 255");
+  if (camera.empty() || camera.find_first_of(" \t\r\n") != std::string::npos)
+    throw std::invalid_argument("merged cloud: camera name \"" + camera +
+                                "\" is empty or has spaces");
+  std::vector<std::string> names;
+  for (const std::string& name : part.property_names) {
+    if (name != kCameraProperty) names.push_back(name);
+  }
+  const bool first = merged.property_names.empty() && merged.xyz.empty();
+  if (first) {
+    merged.property_names = names;
+    merged.property_names.emplace_back(kCameraProperty);
+    merged.properties.assign(merged.property_names.size(), {});
+    merged.property_types.assign(merged.property_names.size(), PlyScalar::Float32);
+    merged.property_types.back() = PlyScalar::UInt8;
+  }
+  std::vector<std::string> have = merged.property_names;
+  std::erase(have, std::string(kCameraProperty));
+  if (have != names)
+    throw std::invalid_argument("merged cloud: camera '" + camera +
+                                "' has other properties than the cameras before it");
+  if (merged.property_types.size() != merged.property_names.size())
+    merged.property_types.assign(merged.property_names.size(), PlyScalar::Float32);
+  merged.xyz.insert(merged.xyz.end(), part.xyz.begin(), part.xyz.end());
+  std::size_t from = 0;
+  for (std::size_t p = 0; p < merged.property_names.size(); ++p) {
+    std::vector<float>& values = merged.properties[p];
+    if (merged.property_names[p] == kCameraProperty) {
+      merged.property_types[p] = PlyScalar::UInt8;
+      values.insert(values.end(), part.size(), static_cast<float>(index));
+      continue;
+    }
+    while (part.property_names[from] == kCameraProperty)
+      ++from;
+    values.insert(values.end(), part.properties[from].begin(), part.properties[from].end());
+    ++from;
+  }
+  merged.comments.push_back("camera " + std::to_string(index) + " " + camera);
 }
 
 PointCloud readPly(const fs::path& file) {
