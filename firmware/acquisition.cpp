@@ -303,13 +303,16 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
       bool retried = false;
       for (const std::string& name : options.cameras) {
         drivers::Camera& camera = board_.camera(name);
+        // The set this camera's frame belongs to: the motion set itself, or
+        // (ring plan) the other one for a camera facing the other half.
+        const FringeSetId camera_set = plan.setOf(name, id);
         for (;;) {
           if (halted()) return;
           std::optional<drivers::Frame> f = camera.waitFrame(timeout);
           if (!f) {
             if (retried) {
               shared.fail("camera '" + name + "': no frame " + std::to_string(k) + " of the " +
-                          std::string(formats::toString(id)) + " set within " +
+                          std::string(formats::toString(camera_set)) + " set within " +
                           std::to_string(options.frame_timeout_ms) + " ms, twice");
               return;
             }
@@ -346,12 +349,13 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
             shared.fail("camera '" + name + "': frame sequence jumped from " +
                         std::to_string(*expected) + " to " + std::to_string(f->sequence) +
                         " at frame " + std::to_string(k) + " of the " +
-                        std::string(formats::toString(id)) + " set: a frame was lost");
+                        std::string(formats::toString(camera_set)) + " set: a frame was lost");
             return;
           }
           expected = f->sequence + 1;
           ++received[name];
-          sink.onFrame(name, id, k, shared.angle_deg[static_cast<std::size_t>(frame)], f->image);
+          sink.onFrame(name, camera_set, k, shared.angle_deg[static_cast<std::size_t>(frame)],
+                       f->image);
           break;
         }
       }

@@ -9,6 +9,10 @@
 // They meet through atomics, and every wait is on the board's clock, so the
 // virtual head's discrete-event clock runs the same code as real time.
 //
+// Frame k of motion set S (the plan's `high` then `low`) goes to camera c as
+// its set plan.setOf(c, S): the same set for a sets plan; with a ring plan,
+// the cameras facing the low half in sweep 1 get it as their low set.
+//
 // Faults: a camera timeout is retried once (stop-and-go triggers the frame
 // again; continuous mode sweeps the set again and each camera skips the frames
 // it already has), then the scan fails; a frame the camera lost without a

@@ -1,16 +1,61 @@
 #include "firmware/bundle_sink.hpp"
 
+#include <algorithm>
+
 namespace cylscan::firmware {
+namespace {
+
+using formats::FringeSetId;
+
+}  // namespace
+
+nlohmann::json ringLayoutJson(const RingLayout& ring) {
+  nlohmann::json first = nlohmann::json::object();
+  nlohmann::json margins = nlohmann::json::object();
+  for (const RingCamera& c : ring.cameras) {
+    first[c.camera] = formats::toString(c.first_sweep_set);
+    margins[c.camera] = {{"window", c.window_margin_deg}, {"half", c.half_margin_deg}};
+  }
+  return {{"start_deg", ring.start_deg},
+          {"sweep2_start_deg", ring.sweep2_start_deg},
+          {"step_deg", ring.step_deg},
+          {"step_steps", ring.step_steps},
+          {"frames", ring.frames},
+          {"noise_gain", {{"high", ring.noise_gain_high}, {"low", ring.noise_gain_low}}},
+          {"cameras", std::move(first)},
+          {"margins_deg", std::move(margins)}};
+}
+
 namespace {
 
 formats::CaptureInfo infoOf(const ScanPlan& plan, const std::vector<std::string>& cameras,
                             nlohmann::json extra) {
   formats::CaptureInfo info;
   info.cameras = cameras;
-  info.high = {plan.high.period_deg, plan.anglesDeg(formats::FringeSetId::High)};
-  info.low = {plan.low.period_deg, plan.anglesDeg(formats::FringeSetId::Low)};
+  // The top-level sets are main's (spec §1); a camera whose angles differ
+  // (a ring plan's cameras facing the other half) carries its own.
+  auto setOf = [&](std::string_view camera, FringeSetId id) {
+    return formats::FringeSetInfo{plan.periodDeg(id), plan.anglesDeg(camera, id)};
+  };
+  info.high = setOf("main", FringeSetId::High);
+  info.low = setOf("main", FringeSetId::Low);
   extra["steps_per_deg"] = plan.steps_per_deg;
-  extra["stage_steps"] = {{"high", plan.high.positions}, {"low", plan.low.positions}};
+  extra["stage_steps"] = {{"high", plan.motionSetOf("main", FringeSetId::High).positions},
+                          {"low", plan.motionSetOf("main", FringeSetId::Low).positions}};
+  for (const std::string& camera : cameras) {
+    formats::CameraSets own{setOf(camera, FringeSetId::High), setOf(camera, FringeSetId::Low)};
+    if (own.high.stage_deg == info.high.stage_deg && own.low.stage_deg == info.low.stage_deg)
+      continue;
+    info.camera_sets[camera] = std::move(own);
+    for (const FringeSetId id : formats::kFringeSets) {
+      extra["camera_sets"][camera][std::string(formats::toString(id))]["stage_steps"] =
+          plan.motionSetOf(camera, id).positions;
+    }
+  }
+  if (plan.ring) {
+    extra["plan"] = "ring";
+    extra["ring"] = ringLayoutJson(*plan.ring);
+  }
   info.extra = std::move(extra);
   return info;
 }

@@ -17,6 +17,11 @@
 
 namespace cylscan::firmware {
 
+// The top-level sets are main's; a camera whose angles differ (a ring plan's
+// cameras facing the other half in sweep 1) gets the extension "camera_sets",
+// and a ring plan writes "plan": "ring" and "ring": its RingLayout
+// ({start_deg, sweep2_start_deg, step_deg, step_steps, frames, noise_gain,
+// cameras: {name: first sweep's set}, margins_deg}).
 class BundleSink final : public FrameSink {
  public:
   BundleSink(const std::filesystem::path& dir, const ScanPlan& plan,
@@ -28,6 +33,9 @@ class BundleSink final : public FrameSink {
  private:
   formats::CaptureBundleWriter writer_;
 };
+
+// A ring layout as JSON (capture.json's "ring", `cylscan scan --json`).
+nlohmann::json ringLayoutJson(const RingLayout& ring);
 
 // Hands every frame to several sinks, in order.
 class TeeSink final : public FrameSink {

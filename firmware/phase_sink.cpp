@@ -14,10 +14,12 @@ algo::FringeSet engineSet(formats::FringeSetId id) {
 }  // namespace
 
 PhaseSink::PhaseSink(const ScanPlan& plan, const algo::PhaseOptions& options)
-    : plan_(plan),
-      options_(options),
-      high_{plan.high.period_deg, plan.anglesDeg(formats::FringeSetId::High)},
-      low_{plan.low.period_deg, plan.anglesDeg(formats::FringeSetId::Low)} {}
+    : plan_(plan), options_(options) {}
+
+algo::FringeSetGeometry PhaseSink::geometry(std::string_view camera,
+                                            formats::FringeSetId set) const {
+  return {plan_.periodDeg(set), plan_.anglesDeg(camera, set)};
+}
 
 PhaseSink::Camera& PhaseSink::camera(std::string_view name) {
   const auto it = cameras_.find(name);
@@ -35,20 +37,26 @@ const PhaseSink::Camera& PhaseSink::camera(std::string_view name) const {
 
 void PhaseSink::onFrame(std::string_view name, formats::FringeSetId set, int k, double stage_deg,
                         const cv::Mat& image) {
-  // The engine's weights come from the plan: a frame must be where it says.
-  const double planned = plan_.anglesDeg(set).at(static_cast<std::size_t>(k));
-  if (std::abs(planned - stage_deg) > 0.5 / plan_.steps_per_deg) {
-    throw std::logic_error("phase: frame " + std::to_string(k) + " of the " +
-                           std::string(formats::toString(set)) + " set was exposed at " +
-                           std::to_string(stage_deg) + " deg, planned " + std::to_string(planned));
-  }
   auto it = cameras_.find(name);
-  if (it == cameras_.end())
+  if (it == cameras_.end()) {
+    algo::FringeSetGeometry high = geometry(name, formats::FringeSetId::High);
+    algo::FringeSetGeometry low = geometry(name, formats::FringeSetId::Low);
+    algo::PhaseEngine engine(image.size(), high, low, options_);
     it = cameras_
              .emplace(std::string(name),
-                      Camera{algo::PhaseEngine(image.size(), high_, low_, options_), 0})
+                      Camera{std::move(high), std::move(low), std::move(engine), 0})
              .first;
+  }
   Camera& c = it->second;
+  // The engine's weights come from the plan: a frame must be where it says.
+  const auto& angles = (set == formats::FringeSetId::High ? c.high : c.low).stage_deg;
+  const double planned = angles.at(static_cast<std::size_t>(k));
+  if (std::abs(planned - stage_deg) > 0.5 / plan_.steps_per_deg) {
+    throw std::logic_error("phase: camera '" + std::string(name) + "': frame " + std::to_string(k) +
+                           " of the " + std::string(formats::toString(set)) +
+                           " set was exposed at " + std::to_string(stage_deg) + " deg, planned " +
+                           std::to_string(planned));
+  }
   c.engine.fold(engineSet(set), k, image);
   ++c.folded;
 }

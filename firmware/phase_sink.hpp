@@ -1,5 +1,6 @@
 // The streaming reconstruction of a scan: one phase engine per camera, each
-// frame folded as it arrives (the engine keeps 16 bytes a pixel, not frames).
+// frame folded as it arrives (the engine keeps 16 bytes a pixel, not frames),
+// so a K-camera scan holds O(K × pixels).
 #pragma once
 
 #include <map>
@@ -16,9 +17,13 @@ namespace cylscan::firmware {
 class PhaseSink final : public FrameSink {
  public:
   // An engine per camera, made at the camera's first frame (its size), for
-  // the executed angles of `plan`.
+  // that camera's executed angles of `plan` (ScanPlan::anglesDeg(camera, set):
+  // with a ring plan each camera has its own) and the sets' periods. A
+  // camera's frames of either set may come first. `plan` must outlive the sink.
   PhaseSink(const ScanPlan& plan, const algo::PhaseOptions& options);
 
+  // std::logic_error when the frame's angle is not the plan's for that
+  // camera's set; the engine's own errors pass through.
   void onFrame(std::string_view camera, formats::FringeSetId set, int k, double stage_deg,
                const cv::Mat& image) override;
 
@@ -26,9 +31,12 @@ class PhaseSink final : public FrameSink {
   algo::PhaseMaps finalize(std::string_view camera);
   algo::CompactPhase finalizeCompact(std::string_view camera);
   int folded(std::string_view camera) const;
+  // The geometry a camera's engine uses (its own angles, the set's period).
+  algo::FringeSetGeometry geometry(std::string_view camera, formats::FringeSetId set) const;
 
  private:
   struct Camera {
+    algo::FringeSetGeometry high, low;
     algo::PhaseEngine engine;
     int folded = 0;
   };
@@ -37,7 +45,6 @@ class PhaseSink final : public FrameSink {
 
   const ScanPlan& plan_;
   algo::PhaseOptions options_;
-  algo::FringeSetGeometry high_, low_;
   std::map<std::string, Camera, std::less<>> cameras_;
 };
 

@@ -37,11 +37,14 @@ int bitDepthOf(const formats::CaptureBundleReader& bundle, const cv::Mat& first,
   return 16;
 }
 
-algo::PhaseEngine makeEngine(const formats::CaptureBundleReader& bundle, cv::Size size,
-                             const algo::PhaseOptions& options) {
+// The camera's own sets: its "camera_sets" entry (a ring scan's cameras facing
+// the other half), else the top-level ones.
+algo::PhaseEngine makeEngine(const formats::CaptureBundleReader& bundle, const std::string& camera,
+                             cv::Size size, const algo::PhaseOptions& options) {
+  const formats::CaptureInfo& info = bundle.info();
   try {
-    return algo::PhaseEngine(size, geometryOf(bundle.info().high), geometryOf(bundle.info().low),
-                             options);
+    return algo::PhaseEngine(size, geometryOf(info.setOf(camera, formats::FringeSetId::High)),
+                             geometryOf(info.setOf(camera, formats::FringeSetId::Low)), options);
   } catch (const std::invalid_argument& e) {  // includes ShiftSolveError
     throw formats::InputError(bundle.dir() / "capture.json", e.what());
   }
@@ -70,11 +73,11 @@ BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
   engine_options.min_modulation = options.min_modulation;
   engine_options.fixed_point = !options.reference;
   out.bit_depth = engine_options.bit_depth;
-  algo::PhaseEngine engine = makeEngine(bundle, out.size, engine_options);
+  algo::PhaseEngine engine = makeEngine(bundle, camera, out.size, engine_options);
 
   // Streaming: each frame is folded in as soon as it is read; none is kept.
   for (const auto set : formats::kFringeSets) {
-    const int n = bundle.frameCount(set);
+    const int n = bundle.frameCount(camera, set);
     for (int k = 0; k < n; ++k) {
       watch.lapMs();
       const bool reuse_first = set == formats::FringeSetId::High && k == 0;

@@ -34,7 +34,8 @@ using firmware::parsePhaseChoice;
 using firmware::PhaseChoice;
 using firmware::toString;
 
-// Runs the engine over all frames of `camera`. InputError naming capture.json
+// Runs the engine over all frames of `camera`, with the camera's own sets
+// (formats::CaptureInfo::setOf: a ring scan's "camera_sets"). InputError naming capture.json
 // when the camera is missing or the angles are unusable, naming the frame when
 // a frame is bad.
 BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,

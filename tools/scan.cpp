@@ -2,7 +2,9 @@
 // acquisition loop (firmware/acquisition.hpp) drives the stage, the trigger
 // and the cameras through the drivers, folds every frame into the phase
 // engine as it arrives, and writes the capture bundle (executed angles); with
-// --calib and --cloud it also reconstructs on the fly.
+// --calib and --cloud it also reconstructs on the fly (main's cloud). With a
+// ring profile ([scan] plan = "ring", e.g. board/sim360) every camera of the
+// profile is scanned and the bundle holds each camera's own sets.
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -66,8 +68,9 @@ firmware::ScanOptions optionsFor(const ScanRequest& request, const drivers::Boar
   if (request.mode == "stop") options.mode = drivers::ScanMode::StopAndGo;
   if (request.mode == "continuous") options.mode = drivers::ScanMode::Continuous;
   if (request.no_verify) options.verify_steps = false;
-  options.cameras = request.cameras.empty() ? std::vector<std::string>{"main"} : request.cameras;
-  if (options.cameras.front() != "main")
+  // Default: the profile's (main alone for a sets plan, every camera for a ring).
+  if (!request.cameras.empty()) options.cameras = request.cameras;
+  if (options.cameras.empty() || options.cameras.front() != "main")
     throw std::invalid_argument("scan: the first camera must be 'main'");
   for (const auto& name : options.cameras)
     (void)profile.camera(name);  // invalid_argument naming an unknown camera
@@ -77,6 +80,20 @@ firmware::ScanOptions optionsFor(const ScanRequest& request, const drivers::Boar
 json jitterJson(const drivers::JitterStats::Snapshot& s) {
   auto us = [](std::chrono::nanoseconds t) { return static_cast<double>(t.count()) / 1e3; };
   return {{"count", s.count}, {"p50_us", us(s.p50)}, {"p99_us", us(s.p99)}, {"max_us", us(s.max)}};
+}
+
+void printRing(const firmware::RingLayout& ring) {
+  std::cout << "  ring plan: " << ring.frames << " frames a sweep, step " << std::setprecision(4)
+            << ring.step_deg << " deg (" << ring.step_steps << " steps), sweep 1 from "
+            << std::setprecision(3) << ring.start_deg << " deg, sweep 2 from "
+            << ring.sweep2_start_deg << " deg; phase noise vs ideal N-step: high "
+            << ring.noise_gain_high << ", low " << ring.noise_gain_low << "\n";
+  for (const firmware::RingCamera& c : ring.cameras) {
+    std::cout << "    " << c.camera << ": sweep 1 = " << formats::toString(c.first_sweep_set)
+              << " set; margins " << std::setprecision(2) << c.window_margin_deg
+              << " deg to an equivalent-period wrap, " << c.half_margin_deg
+              << " deg to a half boundary\n";
+  }
 }
 
 void runScan(const ScanRequest& request) {
@@ -136,6 +153,8 @@ void runScan(const ScanRequest& request) {
                   {"step_jitter", jitterJson(report.step_jitter)},
                   {"trigger_jitter", jitterJson(report.trigger_jitter)},
                   {"stage_deg", {{"high", report.high_deg}, {"low", report.low_deg}}}};
+  summary["plan"] = drivers::toString(options.plan);
+  if (plan.ring) summary["ring"] = firmware::ringLayoutJson(*plan.ring);
   if (report.step_check) {
     summary["step_check"] = {{"expected_edge", report.step_check->expected_edge},
                              {"found_edge", report.step_check->found_edge},
@@ -170,6 +189,7 @@ void runScan(const ScanRequest& request) {
   std::cout << "\n  step lateness p50/p99/max " << report.step_jitter.p50.count() / 1e3 << "/"
             << report.step_jitter.p99.count() / 1e3 << "/" << report.step_jitter.max.count() / 1e3
             << " us" << (report.realtime ? " (SCHED_FIFO)" : " (normal priority)") << "\n";
+  if (plan.ring) printRing(*plan.ring);
   for (const auto& w : report.warnings)
     std::cout << "  warning: " << w << "\n";
   if (!request.out.empty()) std::cout << "  bundle -> " << request.out << "\n";
@@ -194,7 +214,8 @@ void addScanCommand(CLI::App& app) {
   cmd->add_option("--frames", request->frames, "frames per set (default: the profile's)")
       ->check(CLI::Range(3, 1000));
   cmd->add_option("--camera", request->cameras,
-                  "camera to capture (repeatable; default main; main first)");
+                  "camera to capture (repeatable; main first; default: main, or every camera "
+                  "of a ring profile)");
   cmd->add_option("--phase", request->phase, "absolute phase for --cloud: fused or high")
       ->check(CLI::IsMember({"high", "fused"}));
   cmd->add_flag("--no-verify", request->no_verify, "skip the re-seek of home after the scan");
