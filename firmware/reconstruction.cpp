@@ -1,6 +1,7 @@
 #include "firmware/reconstruction.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -70,6 +71,50 @@ formats::PointCloud cloudOfMaps(const cv::Mat& xyz, const cv::Mat& texture) {
     }
   }
   return cloud;
+}
+
+void transformCloud(formats::PointCloud& cloud, const formats::CameraPose& pose) {
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    float* p = &cloud.xyz[3 * i];
+    const std::array<double, 3> x = pose.apply({p[0], p[1], p[2]});
+    for (std::size_t c = 0; c < 3; ++c)
+      p[c] = static_cast<float>(x[c]);
+  }
+}
+
+formats::PointCloud mergeCameraClouds(const std::vector<CameraCloud>& clouds,
+                                      const formats::HeadExtrinsics* head) {
+  if (head == nullptr) {
+    if (clouds.size() > 1) {
+      throw std::invalid_argument("merging the clouds of " + std::to_string(clouds.size()) +
+                                  " cameras needs the head's extrinsics (head.json)");
+    }
+    if (clouds.size() == 1 && clouds.front().camera != "main") {
+      throw std::invalid_argument("the cloud of camera '" + clouds.front().camera +
+                                  "' alone is not in the head frame without head.json");
+    }
+  }
+  formats::PointCloud merged;
+  for (std::size_t i = 0; i < clouds.size(); ++i) {
+    const CameraCloud& part = clouds[i];
+    if (head == nullptr) {
+      formats::appendCameraCloud(merged, part.cloud, i, part.camera);
+      continue;
+    }
+    if (!head->hasCamera(part.camera)) {
+      throw std::invalid_argument("head.json has no pose for camera '" + part.camera + "'");
+    }
+    formats::PointCloud moved = part.cloud;
+    transformCloud(moved, head->pose(part.camera));
+    formats::appendCameraCloud(merged, moved, i, part.camera);
+  }
+  if (clouds.empty()) {
+    merged.property_names = {"intensity", "u", "v", std::string(formats::kCameraProperty)};
+    merged.properties.assign(4, {});
+    merged.property_types = {formats::PlyScalar::Float32, formats::PlyScalar::Float32,
+                             formats::PlyScalar::Float32, formats::PlyScalar::UInt8};
+  }
+  return merged;
 }
 
 cv::Mat depthOfMap(const cv::Mat& xyz) {

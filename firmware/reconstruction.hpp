@@ -7,11 +7,13 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
 #include "algo/phase_engine.hpp"
 #include "algo/quasi_calibration.hpp"
+#include "formats/head_extrinsics.hpp"
 #include "formats/point_cloud.hpp"
 
 namespace cylscan::firmware {
@@ -37,6 +39,26 @@ algo::QuasiCalibration readQuasiCalibration(const std::filesystem::path& file);
 // The cloud of every finite point of an xyz map (CV_32FC3, NaN invalid) with
 // the properties intensity (from `texture`, CV_32F counts), u and v.
 formats::PointCloud cloudOfMaps(const cv::Mat& xyz, const cv::Mat& texture);
+
+// ---------------------------------------------------------------- 360° head (issue #10)
+
+// One camera's cloud in its own frame (cloudOfMaps of its xyz map).
+struct CameraCloud {
+  std::string camera;
+  formats::PointCloud cloud;
+};
+
+// X ← R·X + T for every point of the cloud (its extra properties unchanged).
+void transformCloud(formats::PointCloud& cloud, const formats::CameraPose& pose);
+
+// The merged cloud in the head frame (= main's, spec §4): each camera's cloud
+// mapped by its pose in `head`, appended in the order of `clouds` with its
+// index in a uchar `camera` property and a `comment camera <i> <name>` line.
+// `head` may be null only when the clouds are one camera's, which must then be
+// the head frame's camera (`main`); std::invalid_argument naming the camera
+// otherwise, and when a camera has no pose in `head`.
+formats::PointCloud mergeCameraClouds(const std::vector<CameraCloud>& clouds,
+                                      const formats::HeadExtrinsics* head);
 
 // Z of an xyz map, NaN where any coordinate is not finite (CV_32F).
 cv::Mat depthOfMap(const cv::Mat& xyz);

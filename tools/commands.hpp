@@ -14,5 +14,6 @@ void addEvaluateCommand(CLI::App& app);
 void addRefineStereoCommand(CLI::App& app);
 void addScanCommand(CLI::App& app);
 void addStudyCommand(CLI::App& app);
+void addCalibrateHeadCommand(CLI::App& app);
 
 }  // namespace cylscan::tools

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   cylscan::tools::addReconstructCommand(app);
   cylscan::tools::addEvaluateCommand(app);
   cylscan::tools::addStudyCommand(app);
+  cylscan::tools::addCalibrateHeadCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -3,6 +3,9 @@
 // phase-based stereo of main and aux (--method stereo --stereo, the paper's
 // SV method, for comparison). Both write the same PLY layout: x y z (mm, main
 // camera frame), intensity (the texture, counts), u v (the main pixel).
+// With --calib-dir (the 360° head, issue #10): every calibrated camera of the
+// bundle on its own sets, merged into the head frame by --head head.json, with
+// a uchar `camera` property (comment lines name the cameras).
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -12,6 +15,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -20,11 +24,13 @@
 #include "algo/quasi_calibration.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/file_reading.hpp"
+#include "formats/head_extrinsics.hpp"
 #include "formats/images.hpp"
 #include "formats/input_error.hpp"
 #include "formats/point_cloud.hpp"
 #include "formats/stereo_calibration.hpp"
 #include "tools/bundle_phase.hpp"
+#include "tools/camera_reconstruction.hpp"
 #include "tools/cloud_output.hpp"
 #include "tools/commands.hpp"
 #include "tools/stereo_geometry.hpp"
@@ -44,10 +50,26 @@ struct ReconstructRequest {
   std::string depth;
   std::string phase;  // empty: the calibration's own (quasi), fused (stereo)
   bool json = false;
+  // The 360° head (issue #10): every camera with DIR/<camera>.qcal, merged in
+  // the head frame by head.json; optionally each camera's own cloud.
+  std::string calib_dir;
+  std::string head;
+  std::string per_camera;
 };
 
 // Which inputs each method takes; a wrong combination is a usage error.
 void checkMethodOptions(const ReconstructRequest& request) {
+  if (!request.calib_dir.empty()) {
+    if (request.method != "quasi")
+      throw std::invalid_argument("reconstruct: --calib-dir belongs to --method quasi");
+    if (!request.calib.empty())
+      throw std::invalid_argument("reconstruct: --calib and --calib-dir exclude each other");
+    if (!request.depth.empty())
+      throw std::invalid_argument("reconstruct: --depth is one camera's; not with --calib-dir");
+    return;
+  }
+  if (!request.head.empty() || !request.per_camera.empty())
+    throw std::invalid_argument("reconstruct: --head and --per-camera belong to --calib-dir");
   if (request.method == "quasi") {
     if (request.calib.empty())
       throw std::invalid_argument("reconstruct: --method quasi needs --calib CALIB");
@@ -136,9 +158,76 @@ Reconstruction reconstructStereo(const ReconstructRequest& request,
   return out;
 }
 
+// Every calibrated camera of the bundle, merged into the head frame.
+void runMerged(const ReconstructRequest& request) {
+  Stopwatch total;
+  const formats::CaptureBundleReader bundle(request.bundle);
+  const std::vector<std::string> cameras = calibratedCameras(bundle, request.calib_dir);
+  if (cameras.empty()) {
+    throw formats::InputError(request.calib_dir, "no <camera>.qcal for any camera of " +
+                                                     (bundle.dir() / "capture.json").string());
+  }
+  std::optional<formats::HeadExtrinsics> head;
+  if (!request.head.empty()) {
+    head = formats::readHeadExtrinsics(request.head);
+    for (const std::string& camera : cameras) {
+      if (!head->hasCamera(camera))
+        throw formats::InputError(request.head, "no pose for camera '" + camera + "'");
+    }
+  } else if (cameras.size() > 1 || cameras.front() != "main") {
+    throw std::invalid_argument(
+        "reconstruct: " + std::to_string(cameras.size()) +
+        " calibrated cameras (or one that is not main) need --head head.json");
+  }
+  if (!request.per_camera.empty()) fs::create_directories(request.per_camera);
+  std::vector<firmware::CameraCloud> clouds;
+  nlohmann::json per_camera = nlohmann::json::array();
+  for (const std::string& camera : cameras) {
+    const CameraReconstruction r = reconstructCamera(
+        bundle, camera, calibrationFileOf(request.calib_dir, camera), request.phase);
+    formats::PointCloud cloud = cloudOfMaps(r.xyz, r.texture);
+    nlohmann::json entry = {{"camera", camera},
+                            {"phase", toString(r.phase)},
+                            {"points", cloud.size()},
+                            {"phase_valid_fraction", r.phase_valid_fraction}};
+    if (!request.per_camera.empty()) {
+      const fs::path file = fs::path(request.per_camera) / ("cloud-" + camera + ".ply");
+      formats::writePly(file, cloud);
+      entry["out"] = file.string();
+    }
+    per_camera.push_back(entry);
+    clouds.push_back({camera, std::move(cloud)});
+  }
+  const formats::PointCloud merged = firmware::mergeCameraClouds(clouds, head ? &*head : nullptr);
+  formats::writePly(request.out, merged);
+  if (request.json) {
+    std::cout << nlohmann::json{{"method", "quasi"},
+                                {"frame", "main"},
+                                {"cameras", per_camera},
+                                {"points", merged.size()},
+                                {"timings_ms", {{"total", total.elapsedMs()}}},
+                                {"out", request.out}}
+                     .dump()
+              << "\n";
+    return;
+  }
+  std::cout << "reconstruct (quasi, " << cameras.size() << " camera"
+            << (cameras.size() == 1 ? "" : "s") << ", head frame): " << merged.size()
+            << " points -> " << request.out << "\n";
+  for (const auto& entry : per_camera) {
+    std::cout << "  " << entry["camera"].get<std::string>() << ": "
+              << entry["points"].get<std::size_t>() << " points\n";
+  }
+}
+
 void runReconstruct(const ReconstructRequest& request) {
   Stopwatch total;
   checkMethodOptions(request);
+  if (!request.calib_dir.empty()) {
+    if (!request.phase.empty()) parsePhaseChoice(request.phase);
+    runMerged(request);
+    return;
+  }
   if (!request.phase.empty()) parsePhaseChoice(request.phase);
   const formats::CaptureBundleReader bundle(request.bundle);
   const Reconstruction r = request.method == "quasi" ? reconstructQuasi(request, bundle)
@@ -189,6 +278,15 @@ void addReconstructCommand(CLI::App& app) {
   cmd->add_option("--phase", request->phase,
                   "high or fused (default: the calibration's; fused for stereo)")
       ->check(CLI::IsMember({"high", "fused"}));
+  cmd->add_option("--calib-dir", request->calib_dir,
+                  "360° head: a directory of <camera>.qcal; every calibrated camera of the "
+                  "bundle, merged in the head frame (PLY with a uchar camera property)");
+  cmd->add_option("--head", request->head,
+                  "the head's extrinsics (head.json; needed with --calib-dir when more than "
+                  "main is calibrated)");
+  cmd->add_option(
+      "--per-camera", request->per_camera,
+      "with --calib-dir: also write OUTDIR/cloud-<camera>.ply, each in its camera's frame");
   cmd->add_flag("--json", request->json, "print the summary as one JSON object");
   cmd->callback([request] { runReconstruct(*request); });
 }
