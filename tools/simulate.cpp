@@ -19,9 +19,12 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "drivers/board_profile.hpp"
 #include "drivers/sim/head_config.hpp"
+#include "drivers/sim/ring_head.hpp"
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/virtual_head.hpp"
+#include "firmware/scan_plan.hpp"
 #include "formats/atomic_file.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/checkerboard_set.hpp"
@@ -56,6 +59,13 @@ struct SimulateRequest {
   int repeats = 0;
   bool quick = false;
   bool json = false;
+  // The 360° head (board/sim360): --board DIR with --camera NAME (the
+  // calibration dataset of direction NAME), --turntable (the extrinsics
+  // dataset), or neither (a ring scan of the board's default scene).
+  std::string board;
+  std::string camera;
+  bool turntable = false;
+  bool frames_given = false;  // --frames overrides the profile's frames_high
 };
 
 json vec(const Vec3& v) {
@@ -374,11 +384,14 @@ FringePlan planFringes(const sim::VirtualHead& head, double steps_per_deg, int f
 
 class DatasetWriter {
  public:
-  DatasetWriter(const SimulateRequest& request, sim::VirtualHead& head)
-      : request_(request), head_(head), rig_(head) {
+  // `plan`: the fringe angles to use instead of the one-direction plan
+  // (planFringes); `bundle_extra`: extension fields of every capture.json.
+  DatasetWriter(const SimulateRequest& request, sim::VirtualHead& head,
+                std::optional<FringePlan> plan = std::nullopt, json bundle_extra = json::object())
+      : request_(request), head_(head), rig_(head), bundle_extra_(std::move(bundle_extra)) {
     const sim::CameraParams& main = head.config().cameras.front();
     bit_depth_ = main.bit_depth;
-    plan_ = planFringes(head, rig_.stepsPerDeg(), request.frames);
+    plan_ = plan ? *plan : planFringes(head, rig_.stepsPerDeg(), request.frames);
   }
 
   void writeBoard(const fs::path& dir, nlohmann::json& truth) {
@@ -423,6 +436,7 @@ class DatasetWriter {
                   {"stage_steps", {{"high", plan_.high}, {"low", plan_.low}}},
                   {"exposure_us", head_.config().cameras.front().exposure_us}};
     if (bit_depth_ > 8) info.extra["bit_depth"] = bit_depth_;
+    info.extra.update(bundle_extra_);
     formats::CaptureBundleWriter writer(dir, info);
     for (const auto set : formats::kFringeSets) {
       const auto& steps = set == formats::FringeSetId::High ? plan_.high : plan_.low;
@@ -503,6 +517,7 @@ class DatasetWriter {
   const SimulateRequest& request_;
   sim::VirtualHead& head_;
   Rig rig_;
+  json bundle_extra_;
   FringePlan plan_;
   int bit_depth_ = 8;
   int boards_ = 0;
@@ -534,26 +549,24 @@ formats::StereoCalibration stereoTruth(const sim::VirtualHead& head) {
   return c;
 }
 
-void runSimulate(SimulateRequest request) {
-  const auto started = WallClock::now();
-  if (request.quick) {
-    if (request.width == 0) request.width = 320;
-    if (request.height == 0) request.height = 256;
-  }
-  if ((request.width == 0) != (request.height == 0)) {
-    throw std::invalid_argument("simulate: give both --width and --height");
-  }
-  sim::HeadConfig config =
-      request.head.empty() ? sim::defaultHeadConfig() : sim::loadHeadConfig(request.head);
-  if (config.cameras.size() < 2 || config.cameras[1].name != "aux") {
-    throw std::invalid_argument("simulate: the head needs the cameras 'main' and 'aux'");
-  }
+// --width/--height, --noise and --bit-depth applied to a head.
+sim::HeadConfig applyRequest(sim::HeadConfig config, const SimulateRequest& request) {
   if (request.width > 0) config = sim::withResolution(config, request.width, request.height);
   config.noise.scale *= request.noise;
   if (request.bit_depth > 0) {
     for (auto& cam : config.cameras)
       cam.bit_depth = request.bit_depth;
   }
+  return config;
+}
+
+// The spec §6 dataset on a head with the cameras main and aux. `fringe_plan`:
+// the fringe angles when not the one-direction plan; `extra`: extension fields
+// of every capture.json, also recorded in truth.json's "acquisition" with
+// `truth_extra`.
+void runDataset(const SimulateRequest& request, const sim::HeadConfig& config,
+                std::optional<FringePlan> fringe_plan, const json& extra, const json& truth_extra,
+                WallClock::time_point started) {
   std::vector<sim::Scene> tests = testScenes();
   std::set<std::string> names;
   for (const auto& s : tests)
@@ -576,7 +589,7 @@ void runSimulate(SimulateRequest request) {
   sim::VirtualHead head(config, sim::Scene{}, request.seed);
   const fs::path out(request.out);
   fs::create_directories(out);
-  DatasetWriter writer(request, head);
+  DatasetWriter writer(request, head, std::move(fringe_plan), extra);
   json truth = {{"scenes", json::object()}, {"calib", json::object()}, {"board", json::object()}};
 
   writer.writeBoard(out / "board", truth["board"]);
@@ -611,6 +624,8 @@ void runSimulate(SimulateRequest request) {
                           {"projector_axis_origin_mm", proj.axis_origin_mm},
                           {"seed", request.seed},
                           {"noise_scale", config.noise.scale}};
+  truth["acquisition"].update(extra);
+  truth["acquisition"].update(truth_extra);
   formats::writeStereoCalibration(out / "stereo_truth.yaml", stereoTruth(head));
   formats::writeFileAtomically(out / "truth.json", truth.dump(2) + "\n");
 
@@ -623,7 +638,7 @@ void runSimulate(SimulateRequest request) {
     std::cout << json{{"out", out.string()},
                       {"width", main.width()},
                       {"height", main.height()},
-                      {"frames", request.frames},
+                      {"frames", plan.frames},
                       {"seed", request.seed},
                       {"noise", request.noise},
                       {"board_pairs", writer.boards()},
@@ -642,10 +657,371 @@ void runSimulate(SimulateRequest request) {
     std::cout << "simulate: " << writer.boards() << " board pairs (corners within "
               << writer.cornerError() << " px), " << poses << " calibration bundles, "
               << tests.size() << " test scenes, " << study.scenes.size() << " study scenes ("
-              << main.width() << "x" << main.height() << ", N=" << request.frames << ", noise "
+              << main.width() << "x" << main.height() << ", N=" << plan.frames << ", noise "
               << request.noise << ", seed " << request.seed << ") in " << seconds << " s -> "
               << out.string() << "\n";
   }
+}
+
+// ---- The 360° head (--board, e.g. board/sim360) ------------------------------
+
+// The extra turns of the extrinsics dataset with the target in front of main
+// (they fix the turntable axis): as large as keeps all four 25 mm spheres of
+// the target wholly in main's view (its 2 × 2 layout leaves ≈ 2.8° of room
+// at either side; tests/sim/ring_head_test.cpp checks 5 px of margin).
+constexpr double kExtraTurnDeg = 2.5;
+
+struct RingSetup {
+  drivers::BoardProfile profile;
+  sim::HeadConfig head;  // the whole head, --width/--height/--noise/--bit-depth applied
+  firmware::ScanPlan plan;
+  std::vector<std::string> cameras;  // the profile's cameras (the head's names), main first
+};
+
+RingSetup ringSetup(const SimulateRequest& request) {
+  RingSetup r;
+  r.profile = drivers::loadBoardProfile(request.board);
+  const std::string where = r.profile.file.string();
+  if (!r.profile.sim)
+    throw std::invalid_argument(where + ": the board has no virtual head ([sim])");
+  if (r.profile.scan.plan != drivers::PlanKind::Ring) {
+    throw std::invalid_argument(where + ": simulate --board needs [scan] plan = \"ring\"");
+  }
+  r.head = applyRequest(r.profile.sim->head, request);
+  firmware::ScanOptions options = firmware::scanOptionsFrom(r.profile);
+  if (request.frames_given) options.frames_high = options.frames_low = request.frames;
+  r.plan = firmware::planScan(options, r.profile.stage);
+  if (std::abs(r.plan.steps_per_deg - r.head.stage.stepsPerDeg()) > 1e-9) {
+    throw std::invalid_argument(where + ": [stage] has " + std::to_string(r.plan.steps_per_deg) +
+                                " steps/deg, the virtual head " +
+                                std::to_string(r.head.stage.stepsPerDeg()));
+  }
+  if (r.plan.periodDeg(formats::FringeSetId::High) != r.head.projector.theta_high_deg ||
+      r.plan.periodDeg(formats::FringeSetId::Low) != r.head.projector.theta_low_deg) {
+    throw std::invalid_argument(where +
+                                ": [scan] period_high_deg/period_low_deg differ from "
+                                "the virtual head's slot periods");
+  }
+  for (const auto& cam : r.profile.cameras) {
+    if (!cam.device.empty() && cam.device != cam.name) {
+      throw std::invalid_argument(where + ": camera '" + cam.name +
+                                  "': simulate --board needs device = its name");
+    }
+    r.cameras.push_back(cam.name);
+  }
+  return r;
+}
+
+json ringJson(const firmware::ScanPlan& plan) {
+  json cameras = json::object();
+  for (const auto& c : plan.ring->cameras)
+    cameras[c.camera] = formats::toString(c.first_sweep_set);
+  return {{"start_deg", plan.ring->start_deg},
+          {"step_deg", plan.ring->step_deg},
+          {"frames", plan.ring->frames},
+          {"cameras", cameras}};
+}
+
+json poseJson(const sim::RigidMotion& m) {
+  return {{"R", matrix(m.r)}, {"T", vec(m.t)}};
+}
+
+// --camera NAME: board/sim's dataset for the direction NAME, on the head
+// re-expressed in NAME's frame, at the ring plan's angles of NAME's sets.
+void runCameraDataset(const SimulateRequest& request, const RingSetup& setup,
+                      WallClock::time_point started) {
+  const std::string& name = request.camera;
+  if (std::find(setup.cameras.begin(), setup.cameras.end(), name) == setup.cameras.end()) {
+    throw std::invalid_argument("simulate: --camera '" + name + "' is not a camera of " +
+                                setup.profile.file.string());
+  }
+  const sim::HeadConfig view = sim::headForCamera(setup.head, name);
+  FringePlan f;
+  f.frames = setup.plan.ring->frames;
+  f.high = setup.plan.motionSetOf(name, formats::FringeSetId::High).positions;
+  f.low = setup.plan.motionSetOf(name, formats::FringeSetId::Low).positions;
+  f.high_start = f.high.front();
+  f.low_start = f.low.front();
+  f.high_start_deg = static_cast<double>(f.high_start) / setup.plan.steps_per_deg;
+  f.low_start_deg = static_cast<double>(f.low_start) / setup.plan.steps_per_deg;
+  const auto range = sim::workingVolumeAzimuthDeg(sim::CameraModel(view.cameras.front()),
+                                                  sim::CylindricalProjector(view.projector));
+  f.azimuth_min = range[0];
+  f.azimuth_max = range[1];
+  runDataset(request, view, f, {{"head_camera", name}},
+             {{"plan", "ring"},
+              {"ring", ringJson(setup.plan)},
+              {"board", setup.profile.file.string()},
+              {"head_pose", poseJson(sim::cameraPose([&]() -> const sim::CameraParams& {
+                 for (const auto& c : setup.head.cameras)
+                   if (c.name == name) return c;
+                 throw std::logic_error("no camera");
+               }()))}},
+             started);
+}
+
+// Ring scans of the whole head: both sweeps of the ring plan, every camera per
+// trigger, each frame filed under the camera's own set (plan.setOf).
+class RingScanner {
+ public:
+  RingScanner(const SimulateRequest& request, const RingSetup& setup, sim::VirtualHead& head)
+      : request_(request), setup_(setup), head_(head), rig_(head) {
+    bit_depth_ = head.config().cameras.front().bit_depth;
+  }
+
+  void writeBundle(const fs::path& dir, const sim::Scene& s, const json& extra) {
+    using formats::FringeSetId;
+    const firmware::ScanPlan& plan = setup_.plan;
+    const std::vector<std::string>& cams = setup_.cameras;
+    head_.setScene(s);
+    rig_.startCameras(cams, bit_depth_);
+    rig_.light(true);
+    formats::CaptureInfo info;
+    info.cameras = cams;
+    const auto setInfo = [&](const std::string& camera, FringeSetId id) {
+      return formats::FringeSetInfo{plan.periodDeg(id), plan.anglesDeg(camera, id)};
+    };
+    info.high = setInfo(cams.front(), FringeSetId::High);
+    info.low = setInfo(cams.front(), FringeSetId::Low);
+    for (const std::string& c : cams) {
+      if (c == cams.front() ||
+          plan.setOf(c, FringeSetId::High) == plan.setOf(cams.front(), FringeSetId::High)) {
+        continue;
+      }
+      info.camera_sets[c] = {setInfo(c, FringeSetId::High), setInfo(c, FringeSetId::Low)};
+    }
+    info.extra = {{"device", "cylscan virtual head"},
+                  {"scene", s.name},
+                  {"seed", request_.seed},
+                  {"steps_per_deg", plan.steps_per_deg},
+                  {"stage_steps", {{"high", plan.high.positions}, {"low", plan.low.positions}}},
+                  {"exposure_us", head_.config().cameras.front().exposure_us},
+                  {"plan", "ring"},
+                  {"ring", ringJson(plan)}};
+    if (bit_depth_ > 8) info.extra["bit_depth"] = bit_depth_;
+    info.extra.update(extra);
+    formats::CaptureBundleWriter writer(dir, info);
+    for (const auto motion : formats::kFringeSets) {
+      const auto& steps = plan.set(motion).positions;
+      for (std::size_t k = 0; k < steps.size(); ++k) {
+        rig_.moveTo(steps[k]);
+        const auto frames = rig_.capture(cams);
+        for (std::size_t c = 0; c < cams.size(); ++c) {
+          writer.writeFrame(cams[c], plan.setOf(cams[c], motion), static_cast<int>(k),
+                            frames[c].image);
+        }
+        frames_ += static_cast<int>(cams.size());
+      }
+    }
+    writer.commit();
+    ++bundles_;
+  }
+
+  int frames() const { return frames_; }
+  int bundles() const { return bundles_; }
+
+ private:
+  const SimulateRequest& request_;
+  const RingSetup& setup_;
+  sim::VirtualHead& head_;
+  Rig rig_;
+  int bit_depth_ = 8;
+  int frames_ = 0;
+  int bundles_ = 0;
+};
+
+json ringAcquisition(const SimulateRequest& request, const RingSetup& setup) {
+  json cams = json::object();
+  const sim::CylindricalProjector projector(setup.head.projector);
+  for (const std::string& c : setup.cameras) {
+    for (const auto& params : setup.head.cameras) {
+      if (params.name != c) continue;
+      const auto range = sim::workingVolumeAzimuthDeg(sim::CameraModel(params), projector);
+      cams[c] = {{"azimuth_range_deg", {range[0], range[1]}},
+                 {"high_deg", setup.plan.anglesDeg(c, formats::FringeSetId::High)},
+                 {"low_deg", setup.plan.anglesDeg(c, formats::FringeSetId::Low)}};
+    }
+  }
+  return {{"plan", "ring"},
+          {"ring", ringJson(setup.plan)},
+          {"steps_per_deg", setup.plan.steps_per_deg},
+          {"cameras", cams},
+          {"board", setup.profile.file.string()},
+          {"seed", request.seed},
+          {"noise_scale", setup.head.noise.scale}};
+}
+
+void printRingSummary(const SimulateRequest& request, const sim::HeadConfig& head,
+                      const RingScanner& scanner, const std::string& what,
+                      WallClock::time_point started) {
+  const double seconds = std::chrono::duration<double>(WallClock::now() - started).count();
+  const sim::CameraParams& main = head.cameras.front();
+  if (request.json) {
+    std::cout << json{{"out", request.out},           {"what", what},
+                      {"width", main.width},          {"height", main.height},
+                      {"bundles", scanner.bundles()}, {"frames_rendered", scanner.frames()},
+                      {"seed", request.seed},         {"seconds", seconds}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << "simulate: " << what << ": " << scanner.bundles() << " ring bundles, "
+              << scanner.frames() << " frames (" << main.width << "x" << main.height << ") in "
+              << seconds << " s -> " << request.out << "\n";
+  }
+}
+
+// --turntable: the extrinsics dataset (see sim::TurntableDesign).
+void runTurntable(const SimulateRequest& request, const RingSetup& setup,
+                  WallClock::time_point started) {
+  const sim::TurntableDesign d = sim::turntableDesign(kExtraTurnDeg);
+  json truth;
+  for (const std::string& c : setup.cameras) {
+    for (const auto& params : setup.head.cameras) {
+      if (params.name == c) truth["head"]["cameras"][c] = poseJson(sim::cameraPose(params));
+    }
+  }
+  for (const auto& t : d.turns) {
+    if (!truth["head"]["cameras"].contains(t.facing)) {
+      throw std::invalid_argument("simulate --turntable: the board has no camera '" + t.facing +
+                                  "' (the turntable dataset is made for board/sim360's cameras)");
+    }
+  }
+  truth["head"]["frame"] = "main";
+  truth["head"]["convention"] = "X_main = R * X_cam + T (mm)";
+  truth["turntable"] = {
+      {"axis_point", vec(d.axis_point)},
+      {"axis_direction", vec(d.axis_direction)},
+      {"convention",
+       "turning the head by turntable_deg (right-handed about axis_direction) maps a world point W "
+       "(world = the head frame at turntable_deg 0) to X_head = Rot(axis, -turntable_deg) * W"}};
+  json centres = json::array();
+  for (const auto& s : d.target)
+    centres.push_back(vec(s.center));
+  truth["target"] = {{"radius", d.target.front().radius}, {"centers", centres}};
+  truth["acquisition"] = ringAcquisition(request, setup);
+
+  sim::VirtualHead head(setup.head, sim::Scene{}, request.seed);
+  RingScanner scanner(request, setup, head);
+  const fs::path out(request.out);
+  fs::create_directories(out);
+  const auto scan = [&](const std::vector<sim::Sphere>& spheres,
+                        const sim::TurntableDesign::Turn& t, const fs::path& dir,
+                        const std::string& name) {
+    const sim::RigidMotion to_head = d.worldToHead(t.turntable_deg);
+    sim::Scene sc;
+    sc.name = name;
+    json head_centres = json::array();
+    for (std::size_t i = 0; i < spheres.size(); ++i) {
+      const Vec3 c = to_head.apply(spheres[i].center);
+      sc.objects.push_back(sphere("sphere_" + std::to_string(i), c, spheres[i].radius));
+      head_centres.push_back(vec(c));
+    }
+    scanner.writeBundle(dir, sc, {{"turntable_deg", t.turntable_deg}});
+    return json{
+        {"turntable_deg", t.turntable_deg}, {"facing", t.facing}, {"centers_head", head_centres}};
+  };
+  const int n = static_cast<int>(d.turns.size());
+  for (int i = 0; i < n; ++i) {
+    const std::string id = "turn" + formats::frameFileName(i, n);
+    truth["turns"][id] = scan(d.target, d.turns[static_cast<std::size_t>(i)], out / id, "target");
+  }
+  truth["check"] = {{"radius", d.check.radius}, {"center", vec(d.check.center)}};
+  const int m = static_cast<int>(d.check_turns.size());
+  for (int i = 0; i < m; ++i) {
+    const std::string id = "turn" + formats::frameFileName(i, m);
+    truth["check"]["turns"][id] =
+        scan({d.check}, d.check_turns[static_cast<std::size_t>(i)], out / "check" / id, "check");
+  }
+  formats::writeFileAtomically(out / "truth.json", truth.dump(2) + "\n");
+  printRingSummary(request, setup.head, scanner, "turntable", started);
+}
+
+// Neither flag: ring scans of the board's default scene (or the --scene
+// files), in the head frame, with their truth.
+void runRingScenes(const SimulateRequest& request, const RingSetup& setup,
+                   WallClock::time_point started) {
+  std::vector<sim::Scene> scenes;
+  if (request.scenes.empty()) {
+    if (setup.profile.sim->scene.empty()) {
+      throw std::invalid_argument(setup.profile.file.string() +
+                                  ": [sim] has no scene; give --scene");
+    }
+    scenes.push_back(sim::loadScene(setup.profile.sim->scene));
+  }
+  std::set<std::string> names;
+  for (const std::string& file : request.scenes) {
+    scenes.push_back(sim::loadScene(file));
+    if (!names.insert(scenes.back().name).second) {
+      throw std::invalid_argument(file + ": scene name '" + scenes.back().name +
+                                  "' is already used");
+    }
+  }
+  sim::VirtualHead head(setup.head, sim::Scene{}, request.seed);
+  RingScanner scanner(request, setup, head);
+  const fs::path out(request.out);
+  fs::create_directories(out);
+  json truth = {{"frame", "main"}, {"scenes", json::object()}};
+  for (const sim::Scene& s : scenes) {
+    scanner.writeBundle(out / "test" / s.name, s, json::object());
+    truth["scenes"][s.name] = truthOf(s);
+  }
+  json cams = json::object();
+  for (const std::string& c : setup.cameras) {
+    for (const auto& params : setup.head.cameras) {
+      if (params.name == c) cams[c] = poseJson(sim::cameraPose(params));
+    }
+  }
+  truth["head"] = {{"cameras", cams}};
+  truth["acquisition"] = ringAcquisition(request, setup);
+  formats::writeFileAtomically(out / "truth.json", truth.dump(2) + "\n");
+  printRingSummary(request, setup.head, scanner, "scenes", started);
+}
+
+void runRingSimulate(const SimulateRequest& request, WallClock::time_point started) {
+  if (!request.head.empty()) {
+    throw std::invalid_argument(
+        "simulate: --board takes the head from the board ([sim]); no --head");
+  }
+  if (!request.camera.empty() && request.turntable) {
+    throw std::invalid_argument("simulate: give --camera or --turntable, not both");
+  }
+  const RingSetup setup = ringSetup(request);
+  if (!request.camera.empty()) {
+    runCameraDataset(request, setup, started);
+  } else if (request.turntable) {
+    runTurntable(request, setup, started);
+  } else {
+    runRingScenes(request, setup, started);
+  }
+}
+
+void runOneDirection(const SimulateRequest& request, WallClock::time_point started) {
+  sim::HeadConfig config =
+      request.head.empty() ? sim::defaultHeadConfig() : sim::loadHeadConfig(request.head);
+  if (config.cameras.size() < 2 || config.cameras[1].name != "aux") {
+    throw std::invalid_argument("simulate: the head needs the cameras 'main' and 'aux'");
+  }
+  runDataset(request, applyRequest(config, request), std::nullopt, json::object(), json::object(),
+             started);
+}
+
+void runSimulate(SimulateRequest request) {
+  const auto started = WallClock::now();
+  if (request.quick) {
+    if (request.width == 0) request.width = 320;
+    if (request.height == 0) request.height = 256;
+  }
+  if ((request.width == 0) != (request.height == 0)) {
+    throw std::invalid_argument("simulate: give both --width and --height");
+  }
+  if (!request.board.empty()) {
+    runRingSimulate(request, started);
+    return;
+  }
+  if (!request.camera.empty() || request.turntable) {
+    throw std::invalid_argument("simulate: --camera and --turntable need --board (a 360° head)");
+  }
+  runOneDirection(request, started);
 }
 
 }  // namespace
@@ -659,7 +1035,8 @@ void addSimulateCommand(CLI::App& app) {
   cmd->add_option("--width", request->width, "image width (intrinsics scaled, same field of view)")
       ->check(CLI::Range(64, 4096));
   cmd->add_option("--height", request->height, "image height")->check(CLI::Range(64, 4096));
-  cmd->add_option("--frames", request->frames, "frames per fringe set")->check(CLI::Range(3, 200));
+  CLI::Option* frames = cmd->add_option("--frames", request->frames, "frames per fringe set")
+                            ->check(CLI::Range(3, 200));
   cmd->add_option("--noise", request->noise, "scale on the noise model (0: noiseless)")
       ->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--seed", request->seed, "noise seed (same seed, same bytes)");
@@ -678,9 +1055,19 @@ void addSimulateCommand(CLI::App& app) {
                   "study: repeated scans of two fixed sphere and plane poses "
                   "(sphere_repeatP_rNN, plane_repeatP_rNN)")
       ->check(CLI::Range(0, 99));
+  cmd->add_option("--board", request->board,
+                  "a 360° head's board (e.g. board/sim360): with --camera, --turntable or "
+                  "neither (a ring scan of its default scene)");
+  cmd->add_option("--camera", request->camera,
+                  "with --board: the spec §6 dataset of this camera's direction");
+  cmd->add_flag("--turntable", request->turntable,
+                "with --board: the extrinsics dataset (the head on a turntable)");
   cmd->add_flag("--quick", request->quick, "320x256 unless --width/--height are given");
   cmd->add_flag("--json", request->json, "print the summary as one JSON object");
-  cmd->callback([request] { runSimulate(*request); });
+  cmd->callback([request, frames] {
+    request->frames_given = frames->count() > 0;
+    runSimulate(*request);
+  });
 }
 
 }  // namespace cylscan::tools
