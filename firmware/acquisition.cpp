@@ -245,9 +245,12 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
       } else {
         drivers::SweepRequest request;
         request.direction = 1;
+        // One frame step per frame period: the set's own step (θ/N for a sets
+        // plan; a ring plan's common Δ, which differs from θ/N).
+        const double frame_step_deg = set.step_deg > 0 ? set.step_deg : set.period_deg / n;
         request.speed_deg_s = options.sweep_speed_deg_s > 0
                                   ? options.sweep_speed_deg_s
-                                  : set.period_deg / n * options.frame_rate_hz;
+                                  : frame_step_deg * options.frame_rate_hz;
         request.range_steps = set.positions.back() - set.positions.front();
         for (const auto p : set.positions)
           request.trigger_offsets.push_back(p - set.positions.front());
