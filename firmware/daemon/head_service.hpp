@@ -94,6 +94,21 @@ class HeadService {
   virtual nlohmann::json calibrationInfo(std::string_view camera) const = 0;
   virtual std::optional<std::filesystem::path> calibrationFile(std::string_view camera) const = 0;
 
+  // The 360° head (issue #10). PUT /api/v1/head: validates head.json's text
+  // (format, rotations; the cameras named must be the board's, the frame
+  // main) and installs it atomically. ServiceError 400/422. Returns headInfo().
+  virtual nlohmann::json installHead(std::string_view /*text*/) {
+    throw ServiceError(404, "this head has no extrinsics to install");
+  }
+  // GET /api/v1/head: the installed head.json, nullopt when none is.
+  virtual std::optional<nlohmann::json> headInfo() const { return std::nullopt; }
+  // GET /api/v1/scans/{id}/clouds/{camera}.ply: a ring scan's per-camera cloud
+  // (its camera's own frame); nullopt when the scan or the file does not exist.
+  virtual std::optional<std::filesystem::path> scanCameraCloud(std::string_view /*id*/,
+                                                               std::string_view /*camera*/) const {
+    return std::nullopt;
+  }
+
   // GET /api/v1/events.
   virtual std::unique_ptr<EventStream> subscribe() = 0;
 

@@ -12,7 +12,10 @@
 #include "firmware/phase_sink.hpp"
 #include "firmware/reconstruction.hpp"
 #include "firmware/scan_plan.hpp"
+#include "formats/file_reading.hpp"
+#include "formats/head_extrinsics.hpp"
 #include "formats/images.hpp"
+#include "formats/input_error.hpp"
 
 namespace cylscan::firmware {
 namespace {
@@ -102,6 +105,7 @@ ScanService::ScanService(ScanServiceOptions options)
   scans_total_.inc("done", 0);
   scans_total_.inc("failed", 0);
   loadCalibrationInfo();
+  loadHeadInfo();
   worker_ = std::thread([this] { worker(); });
 }
 
@@ -155,6 +159,20 @@ void ScanService::loadCalibrationInfo() {
   }
   std::lock_guard lock(mutex_);
   calibration_info_ = std::move(infos);
+}
+
+void ScanService::loadHeadInfo() {
+  const fs::path file = store_.headPath();
+  std::error_code ec;
+  if (!fs::exists(file, ec)) return;
+  try {
+    const formats::HeadExtrinsics head = formats::readHeadExtrinsics(file);
+    json info = json::parse(formats::headExtrinsicsJson(head));
+    std::lock_guard lock(mutex_);
+    head_info_ = std::move(info);
+  } catch (const std::exception& e) {
+    logWarn("the installed head extrinsics " + file.string() + " are not used: " + e.what());
+  }
 }
 
 ScanService::Request ScanService::validate(const json& options) const {
@@ -212,7 +230,9 @@ ScanService::Request ScanService::validate(const json& options) const {
     r.scan.mode =
         *mode == "continuous" ? drivers::ScanMode::Continuous : drivers::ScanMode::StopAndGo;
   if (frames) r.scan.frames_high = r.scan.frames_low = *frames;
-  r.scan.cameras = {"main"};
+  // A ring plan (the 360° head) scans every camera of the board; a sets plan
+  // main only, as before.
+  if (r.scan.plan != drivers::PlanKind::Ring) r.scan.cameras = {"main"};
   try {
     const ScanPlan plan = planScan(r.scan, profile_.stage);
     r.frames_total = plan.frames();
@@ -228,6 +248,9 @@ std::uint64_t ScanService::scanEstimateBytes(const json& options) const {
   const std::uint64_t pixels = static_cast<std::uint64_t>(std::max(main.width, 0)) *
                                static_cast<std::uint64_t>(std::max(main.height, 0));
   std::uint64_t bytes = pixels * kOutputBytesPerPixel + 65536;
+  // A ring scan: each other camera's cloud twice (clouds/<camera>.ply and its
+  // part of the merged cloud.ply, 25 B a point each).
+  if (r.scan.cameras.size() > 1) bytes += pixels * 50 * (r.scan.cameras.size() - 1);
   if (r.save_bundle)
     bytes += static_cast<std::uint64_t>(r.frames_total) * pixels * (main.bit_depth > 8 ? 2 : 1);
   return bytes;
@@ -442,17 +465,22 @@ void ScanService::runJob(Job& job) {
     std::vector<std::string> files = {"texture.png", "phase.png"};
     formats::writePng(partial / "texture.png", textureImage(maps.texture, main.bit_depth));
     formats::writePng(partial / "phase.png", previewOfMap(absolutePhase(maps, choice)));
+    const bool ring = req.scan.cameras.size() > 1;
     if (calib) {
       const cv::Mat xyz = calib->evaluate(absolutePhase(maps, choice));
-      const formats::PointCloud cloud = cloudOfMaps(xyz, maps.texture);
-      formats::writePly(partial / "cloud.ply", cloud);
+      if (!ring) {
+        const formats::PointCloud cloud = cloudOfMaps(xyz, maps.texture);
+        formats::writePly(partial / "cloud.ply", cloud);
+        result["points"] = cloud.size();
+      }
       const cv::Mat depth = depthOfMap(xyz);
       formats::writeFloatTiff(partial / "depth.tiff", depth);
       formats::writePng(partial / "depth.png", previewOfMap(depth));
-      files.insert(files.begin(), {"cloud.ply", "depth.tiff"});
+      files.insert(files.begin(), "depth.tiff");
+      if (!ring) files.insert(files.begin(), "cloud.ply");
       files.push_back("depth.png");
-      result["points"] = cloud.size();
     }
+    if (ring) writeRingClouds(phase, maps, req.scan.cameras, partial, files, result);
     result["files"] = files;
     result["calibrated"] = calib.has_value();
     result["phase"] = toString(choice);
@@ -521,6 +549,19 @@ void ScanService::runJob(Job& job) {
   }
 }
 
+// The board's cameras, whether each is scanned (ring plan: all; else main)
+// and calibrated (mutex_ held).
+json ScanService::camerasJsonLocked() const {
+  json out = json::array();
+  const bool ring = profile_.scan.plan == drivers::PlanKind::Ring;
+  for (const auto& camera : profile_.cameras) {
+    out.push_back({{"name", camera.name},
+                   {"scanned", ring || camera.name == "main"},
+                   {"calibrated", calibration_info_.count(camera.name) > 0}});
+  }
+  return out;
+}
+
 json ScanService::status() const {
   // The head's outputs as the firmware drives them (before mutex_: the two
   // mutexes are never held together).
@@ -542,6 +583,8 @@ json ScanService::status() const {
               {"current_scan", s["scan"]},
               {"last_error", last_error_ ? json(*last_error_) : json(nullptr)},
               {"calibration", {{"main", calibration_info_.count("main") > 0}}},
+              {"cameras", camerasJsonLocked()},
+              {"head", {{"installed", head_info_.has_value()}}},
               {"scans", store_.count()},
               {"uptime_s", secondsSince(started_)},
               {"realtime", realtime_},
@@ -650,6 +693,144 @@ std::optional<fs::path> ScanService::calibrationFile(std::string_view camera) co
   std::error_code ec;
   if (!fs::is_regular_file(file, ec)) return std::nullopt;
   return file;
+}
+
+void ScanService::writeRingClouds(PhaseSink& phase, const algo::PhaseMaps& main_maps,
+                                  const std::vector<std::string>& cameras, const fs::path& partial,
+                                  std::vector<std::string>& files, json& result) {
+  // The head's extrinsics and the calibrations as installed now.
+  std::optional<formats::HeadExtrinsics> head;
+  {
+    const fs::path file = store_.headPath();
+    std::error_code ec;
+    if (fs::exists(file, ec)) {
+      try {
+        head = formats::readHeadExtrinsics(file);
+      } catch (const std::exception& e) {
+        throw ScanError("the installed head extrinsics " + file.string() +
+                        " are unusable (install them again): " + e.what());
+      }
+    }
+  }
+  std::vector<CameraCloud> clouds;
+  json per_camera = json::array();
+  for (const std::string& camera : cameras) {
+    const fs::path file = store_.calibrationPath(camera);
+    std::error_code ec;
+    json entry = {{"camera", camera}, {"calibrated", false}, {"points", 0}};
+    if (!fs::exists(file, ec)) {
+      per_camera.push_back(entry);
+      continue;
+    }
+    algo::QuasiCalibration calib = [&] {
+      try {
+        algo::QuasiCalibration c = readQuasiCalibration(file);
+        const auto& config = board_->profile().camera(camera).config;
+        c.requireImageSize({config.width, config.height});
+        return c;
+      } catch (const std::exception& e) {
+        {
+          std::lock_guard lock(mutex_);
+          calibration_info_.erase(camera);
+        }
+        throw ScanError("the installed calibration " + file.string() +
+                        " is unusable (install it again): " + e.what());
+      }
+    }();
+    const algo::PhaseMaps maps = camera == "main" ? main_maps : phase.finalize(camera);
+    const PhaseChoice choice = phaseChoiceOf(calib.info().phase_source);
+    formats::PointCloud cloud =
+        cloudOfMaps(calib.evaluate(absolutePhase(maps, choice)), maps.texture);
+    fs::create_directories(partial / "clouds");
+    formats::writePly(partial / "clouds" / (camera + ".ply"), cloud);
+    files.push_back("clouds/" + camera + ".ply");
+    entry["calibrated"] = true;
+    entry["points"] = cloud.size();
+    entry["phase"] = toString(choice);
+    entry["phase_valid_fraction"] = maps.valid_fraction;
+    entry["file"] = "clouds/" + camera + ".ply";
+    per_camera.push_back(entry);
+    clouds.push_back({camera, std::move(cloud)});
+  }
+  result["cameras"] = per_camera;
+  // cloud.ply: all calibrated cameras in the head frame when head.json covers
+  // them; else main's alone (said why), or none.
+  std::vector<std::string> missing;
+  for (const CameraCloud& c : clouds) {
+    if (c.camera != "main" && (!head || !head->hasCamera(c.camera))) missing.push_back(c.camera);
+  }
+  std::vector<CameraCloud> merged_parts;
+  std::string note;
+  if (missing.empty()) {
+    merged_parts = std::move(clouds);
+    result["cloud"] = "merged";
+  } else {
+    std::string names;
+    for (const std::string& m : missing)
+      names += (names.empty() ? "" : ", ") + m;
+    note = (head ? "the installed head.json has no pose for "
+                 : "no head extrinsics installed (PUT /api/v1/head) for ") +
+           names + ": cloud.ply is main's alone";
+    for (CameraCloud& c : clouds) {
+      if (c.camera == "main") merged_parts.push_back(std::move(c));
+    }
+    result["cloud"] = merged_parts.empty() ? "none" : "main";
+    result["cloud_note"] = note;
+  }
+  if (merged_parts.empty()) {
+    result["points"] = 0;
+    return;
+  }
+  const formats::PointCloud merged = mergeCameraClouds(merged_parts, head ? &*head : nullptr);
+  formats::writePly(partial / "cloud.ply", merged);
+  files.insert(files.begin(), "cloud.ply");
+  result["points"] = merged.size();
+}
+
+json ScanService::installHead(std::string_view text) {
+  formats::HeadExtrinsics head;
+  try {
+    head = formats::parseHeadExtrinsics(text, "head.json");
+  } catch (const formats::InputError& e) {
+    throw ServiceError(400, e.what());
+  }
+  if (head.frame != "main")
+    throw ServiceError(422,
+                       "head.json: \"frame\" must be main (the head frame), not " + head.frame);
+  for (const auto& [camera, pose] : head.cameras) {
+    const bool known =
+        std::any_of(profile_.cameras.begin(), profile_.cameras.end(),
+                    [&](const drivers::CameraProfile& c) { return c.name == camera; });
+    if (!known) {
+      throw ServiceError(422, "head.json: \"cameras." + camera + "\": the board " + board_name_ +
+                                  " has no camera '" + camera + "'");
+    }
+  }
+  const std::string canonical = formats::headExtrinsicsJson(head);
+  json info = json::parse(canonical);
+  {
+    std::lock_guard install(calibration_mutex_);
+    store_.installHead(canonical);
+    std::lock_guard lock(mutex_);
+    head_info_ = info;
+  }
+  logInfo("head extrinsics installed (" + std::to_string(head.cameras.size()) + " cameras)");
+  return info;
+}
+
+std::optional<json> ScanService::headInfo() const {
+  std::lock_guard lock(mutex_);
+  return head_info_;
+}
+
+std::optional<fs::path> ScanService::scanCameraCloud(std::string_view id,
+                                                     std::string_view camera) const {
+  if (!isValidScanId(id)) return std::nullopt;
+  {
+    std::lock_guard lock(mutex_);
+    if (job_ && job_->id == id) return std::nullopt;  // not done yet
+  }
+  return store_.cameraCloud(id, camera);
 }
 
 std::unique_ptr<EventStream> ScanService::subscribe() {

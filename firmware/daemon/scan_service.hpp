@@ -25,6 +25,7 @@
 #include "firmware/daemon/head_service.hpp"
 #include "firmware/daemon/metrics.hpp"
 #include "firmware/daemon/scan_store.hpp"
+#include "firmware/phase_sink.hpp"
 
 namespace cylscan::firmware {
 
@@ -77,6 +78,10 @@ class ScanService final : public HeadService {
   nlohmann::json installCalibration(std::string_view camera, std::string_view bytes) override;
   nlohmann::json calibrationInfo(std::string_view camera) const override;
   std::optional<std::filesystem::path> calibrationFile(std::string_view camera) const override;
+  nlohmann::json installHead(std::string_view text) override;
+  std::optional<nlohmann::json> headInfo() const override;
+  std::optional<std::filesystem::path> scanCameraCloud(std::string_view id,
+                                                       std::string_view camera) const override;
   std::unique_ptr<EventStream> subscribe() override;
   std::string metricsText() const override;
 
@@ -90,10 +95,19 @@ class ScanService final : public HeadService {
   void runJob(Job& job);
   void reopenBoard(const std::optional<std::filesystem::path>& scene);
   void loadCalibrationInfo();
+  void loadHeadInfo();
+  // The 360° outputs of a ring scan: every calibrated camera's cloud
+  // (clouds/<camera>.ply) and cloud.ply merged in the head frame. Adds to
+  // `files` and `result`.
+  void writeRingClouds(PhaseSink& phase, const algo::PhaseMaps& main_maps,
+                       const std::vector<std::string>& cameras,
+                       const std::filesystem::path& partial, std::vector<std::string>& files,
+                       nlohmann::json& result);
   void publishState();  // mutex_ held
   // The job's end (mutex_ held): no job, its last scan event, the state.
   void finishLocked(const nlohmann::json& object);
   nlohmann::json stateJson() const;  // mutex_ held
+  nlohmann::json camerasJsonLocked() const;
   std::string newScanId(std::chrono::system_clock::time_point now);
 
   ScanServiceOptions options_;
@@ -120,7 +134,8 @@ class ScanService final : public HeadService {
   bool realtime_ = false;
   std::string last_id_;
   std::map<std::string, nlohmann::json, std::less<>>
-      calibration_info_;  // by camera, when installed
+      calibration_info_;                     // by camera, when installed
+  std::optional<nlohmann::json> head_info_;  // the installed head.json
 
   Counter frames_total_;
   LabelledCounter scans_total_;

@@ -207,6 +207,18 @@ std::optional<fs::path> ScanStore::file(std::string_view id, std::string_view na
   return path;
 }
 
+std::optional<fs::path> ScanStore::cameraCloud(std::string_view id, std::string_view camera) const {
+  if (!isValidScanId(id) || !isCameraName(camera)) return std::nullopt;
+  {
+    const std::lock_guard lock(mutex_);
+    if (scans_.find(id) == scans_.end()) return std::nullopt;
+  }
+  const fs::path path = scansDir() / std::string(id) / "clouds" / (std::string(camera) + ".ply");
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return std::nullopt;
+  return path;
+}
+
 bool ScanStore::remove(std::string_view id) {
   if (!isValidScanId(id)) return false;
   const std::lock_guard lock(mutex_);
@@ -279,6 +291,10 @@ fs::path ScanStore::calibrationPath(std::string_view camera) const {
 
 void ScanStore::installCalibration(std::string_view camera, std::span<const std::byte> bytes) {
   formats::writeFileAtomically(calibrationPath(camera), bytes);
+}
+
+void ScanStore::installHead(std::string_view text) {
+  formats::writeFileAtomically(headPath(), text);
 }
 
 }  // namespace cylscan::firmware

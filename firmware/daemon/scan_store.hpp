@@ -3,6 +3,8 @@
 //   scans/.partial-<id>/               a scan being written (never listed)
 //   scans/.broken-<id>/                a scan dir whose scan.json was unusable
 //   calibration/<camera>.qcal          the installed quasi-calibrations
+//   calibration/head.json              the installed head extrinsics (360° head)
+//   scans/<id>/clouds/<camera>.ply     a ring scan's per-camera clouds
 // A scan is written in its partial dir, every file and the dir fsynced, then
 // renamed to <id> and the parent fsynced: a crash leaves either no scan or a
 // whole one. Thread-safe (one mutex around the index; no call waits for more
@@ -50,6 +52,9 @@ class ScanStore {
   std::optional<nlohmann::json> get(std::string_view id) const;
   // `name` one of kScanFileNames; nullopt unless the scan and the file exist.
   std::optional<std::filesystem::path> file(std::string_view id, std::string_view name) const;
+  // clouds/<camera>.ply of a finished scan; nullopt unless it exists.
+  std::optional<std::filesystem::path> cameraCloud(std::string_view id,
+                                                   std::string_view camera) const;
   bool remove(std::string_view id);
   std::size_t count() const;
   std::uint64_t totalBytes() const;
@@ -67,6 +72,9 @@ class ScanStore {
   // Written atomically (temp, fsync, rename, fsync dir): the old one stays
   // whole until the new one is.
   void installCalibration(std::string_view camera, std::span<const std::byte> bytes);
+  // calibration/head.json (the head's extrinsics), written the same way.
+  std::filesystem::path headPath() const { return dir_ / "calibration" / "head.json"; }
+  void installHead(std::string_view text);
 
  private:
   struct Entry {

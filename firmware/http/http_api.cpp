@@ -579,6 +579,25 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       reply.file = std::move(file);
       return reply;
     }
+    case Endpoint::ScanCameraCloud: {
+      const auto path = service.scanCameraCloud(r.route.id, r.route.name);
+      auto file = path ? http::openRegularFile(*path) : std::nullopt;
+      if (!file) {
+        return errorReply(404, "scan " + r.route.id + " has no cloud of camera " + r.route.name);
+      }
+      Reply reply;
+      reply.content_type = "application/octet-stream";
+      reply.file = std::move(file);
+      return reply;
+    }
+    case Endpoint::Head: {
+      if (get) {
+        auto head = service.headInfo();
+        if (!head) return errorReply(404, "no head extrinsics installed (PUT /api/v1/head)");
+        return jsonReply(200, *head);
+      }
+      return jsonReply(200, service.installHead(r.body));
+    }
     case Endpoint::Calibration: {
       if (get) return jsonReply(200, json{{"main", service.calibrationInfo("main")}});
       const char* arg = MHD_lookup_connection_value(c, MHD_GET_ARGUMENT_KIND, "camera");

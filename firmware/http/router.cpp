@@ -149,7 +149,31 @@ Route route(std::string_view method, std::string_view path) {
         }
         return r;
       }
+      if (s.size() == 6 && s[4] == "clouds") {
+        Route r = withMethods(Endpoint::ScanCameraCloud, method, true, false, false, false);
+        if (r.status != 0) return r;
+        if (!isValidScanId(s[3])) {
+          r.param_status = 404;
+          r.error = "no such scan: the id is not a valid scan id";
+          return r;
+        }
+        r.id = std::string(s[3]);
+        // <camera>.ply, the camera name by the calibration rule ([0-9a-z-], 1..64).
+        const std::string_view file = s[5];
+        const std::string_view camera =
+            file.ends_with(".ply") ? file.substr(0, file.size() - 4) : std::string_view{};
+        if (!isValidScanId(camera)) {
+          r.param_status = 404;
+          r.error = "no such camera cloud: " + std::string(file) + " (clouds/<camera>.ply)";
+          return r;
+        }
+        r.name = std::string(camera);
+        return r;
+      }
       return notFound(path);
+    }
+    if (what == "head" && s.size() == 3) {
+      return withMethods(Endpoint::Head, method, true, false, true, false);
     }
     if (what == "calibration") {
       if (s.size() == 3) {

@@ -18,6 +18,8 @@ enum class Endpoint {
   Scans,            // /api/v1/scans
   Scan,             // /api/v1/scans/{id}
   ScanFile,         // /api/v1/scans/{id}/{name}
+  ScanCameraCloud,  // /api/v1/scans/{id}/clouds/{camera}.ply (name = the camera)
+  Head,             // /api/v1/head
   Calibration,      // /api/v1/calibration
   CalibrationFile,  // /api/v1/calibration/{camera}
   Events,           // /api/v1/events
