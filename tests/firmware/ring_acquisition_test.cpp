@@ -10,12 +10,9 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <map>
 #include <numbers>
-#include <regex>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -29,6 +26,7 @@
 #include "firmware/phase_sink.hpp"
 #include "firmware/scan_plan.hpp"
 #include "formats/capture_bundle.hpp"
+#include "tests/support/ring_board.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace cylscan::firmware {
@@ -36,67 +34,11 @@ namespace {
 
 namespace fs = std::filesystem;
 using formats::FringeSetId;
+using test_support::ringBoard;
 using test_support::TempDir;
 constexpr double kPi = std::numbers::pi;
 
 const std::vector<std::string> kCameras{"main", "cam90", "cam180", "cam270"};
-
-std::string readText(const fs::path& file) {
-  std::ifstream in(file);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-// In front of each camera a wall 590 mm along its view, tilted as the single
-// camera tests' wall is: camA's frame is main's turned by A about the
-// projector axis (vertical through (120, 0, 0)): X = R_y(A)·p + C_A with
-// C_A = (120 − 120 cos A, 0, 120 sin A) (board/sim360/head.toml). The walls
-// stay out of each other's views and light (each is > 500 mm from the others'
-// rays).
-std::string fourWalls() {
-  std::ostringstream s;
-  s << "name = \"four walls\"\nambient = 0.03\n";
-  for (const double a_deg : {0.0, 90.0, 180.0, 270.0}) {
-    const double a = a_deg * kPi / 180.0, c = std::cos(a), sn = std::sin(a);
-    auto turn = [&](double x, double y, double z) {
-      return std::array<double, 3>{x * c + z * sn, y, -x * sn + z * c};
-    };
-    const auto p = turn(0.0, 0.0, 590.0);
-    const auto n = turn(0.1, -0.05, -1.0);
-    s << "[[object]]\ntype = \"plane\"\npoint = [" << p[0] + 120.0 - 120.0 * c << ", " << p[1]
-      << ", " << p[2] + 120.0 * sn << "]\nnormal = [" << n[0] << ", " << n[1] << ", " << n[2]
-      << "]\n";
-  }
-  return s.str();
-}
-
-// board/sim360 at 160×128 (same fields of view) with an ideal projector (no
-// eccentricity or source offset: the shifts are then exactly the stage's, so
-// the analytic phase is exact), the four walls, and `replace` applied to
-// board.toml.
-fs::path ringBoard(const TempDir& dir,
-                   const std::vector<std::pair<std::string, std::string>>& replace = {}) {
-  const fs::path source = fs::path(CYLSCAN_SOURCE_DIR) / "board/sim360";
-  std::string board = readText(source / "board.toml");
-  board = std::regex_replace(board, std::regex("width = 1000"), "width = 160");
-  board = std::regex_replace(board, std::regex("height = 800"), "height = 128");
-  for (const auto& [from, to] : replace)
-    board = std::regex_replace(board, std::regex(from), to);
-  board = board.substr(0, board.rfind("\n[sim]") + 1);
-  board +=
-      "[sim]\nhead = \"head.toml\"\nscene = \"scene.toml\"\nseed = 3\n"
-      "resolution = [160, 128]\n";
-  std::string head = readText(source / "head.toml");
-  head =
-      std::regex_replace(head, std::regex("eccentricity_mm = [-0-9.e]+"), "eccentricity_mm = 0.0");
-  head = std::regex_replace(head, std::regex("source_offset_mm = \\[[^\\]]*\\]"),
-                            "source_offset_mm = [0.0, 0.0, 0.0]");
-  dir.write("board.toml", board);
-  dir.write("head.toml", head);
-  dir.write("scene.toml", fourWalls());
-  return dir.path();
-}
 
 struct Scan {
   drivers::Board board;
