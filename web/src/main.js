@@ -255,12 +255,40 @@ async function select(id) {
     if (abort.signal.aborted) return;
     const count = state.viewer.load(bytes);
     window.cylscanViewer.pointCount = count;
+    showCameraLegend(state.viewer.cameras);
     info.textContent = `${count.toLocaleString()} points (${formatBytes(bytes.byteLength)}) — drag to orbit, wheel to zoom`;
   } catch (error) {
     if (abort.signal.aborted) return;
     window.cylscanViewer.error = error.message;
     info.textContent = `Point cloud: ${error.message}`;
   }
+}
+
+// A merged 360° cloud: the viewer coloured by camera, and the legend of the
+// cameras (name, colour, point count). A one-camera cloud hides the legend.
+function showCameraLegend(cameras) {
+  const legend = $('camera-legend');
+  legend.replaceChildren();
+  window.cylscanViewer.cameras = cameras.map(({ name, points }) => ({ name, points }));
+  if (cameras.length === 0) {
+    legend.hidden = true;
+    if ($('colour-mode').value === 'camera') {
+      $('colour-mode').value = 'intensity';
+      state.viewer.colour('intensity');
+    }
+    return;
+  }
+  for (const camera of cameras) {
+    const item = document.createElement('li');
+    const swatch = document.createElement('span');
+    swatch.className = 'swatch';
+    swatch.style.background = `#${camera.colour.toString(16).padStart(6, '0')}`;
+    item.append(swatch, `${camera.name}: ${camera.points.toLocaleString()} points`);
+    legend.append(item);
+  }
+  legend.hidden = false;
+  $('colour-mode').value = 'camera';
+  state.viewer.colour('camera');
 }
 
 // --------------------------------------------------------------------- events

@@ -1,6 +1,8 @@
 // The point-cloud viewer: a binary PLY (spec §4: float x y z in mm in the
 // main camera frame, OpenCV axes, then extra properties such as intensity)
-// drawn as points with three.js, orbit controls, coloured by intensity or depth.
+// drawn as points with three.js, orbit controls, coloured by intensity or depth,
+// or — the merged cloud of a 360° head, with a `camera` property named by
+// `comment camera <index> <name>` header lines — by camera.
 
 import {
   BufferAttribute,
@@ -50,6 +52,25 @@ function ramp(t, out) {
   out[2] = b0 + f * (b1 - b0);
 }
 
+// One colour per camera index (distinct hues, readable on the dark background).
+export const CAMERA_COLOURS = [0x4fc3f7, 0xffb74d, 0x81c784, 0xf06292, 0xba68c8, 0xfff176, 0x4db6ac, 0xe57373];
+
+export function cameraColour(index) {
+  return CAMERA_COLOURS[index % CAMERA_COLOURS.length];
+}
+
+// The `comment camera <index> <name>` lines of a PLY header: names by index.
+export function plyCameraNames(bytes) {
+  const head = new TextDecoder('latin1').decode(new Uint8Array(bytes, 0, Math.min(bytes.byteLength, 65536)));
+  const end = head.indexOf('end_header');
+  const names = [];
+  for (const line of head.slice(0, end < 0 ? head.length : end).split('\n')) {
+    const m = /^comment camera (\d+) (\S+)\s*$/.exec(line);
+    if (m) names[Number(m[1])] = m[2];
+  }
+  return names;
+}
+
 // Typical distance (mm) between neighbouring points, the size a point is
 // drawn with so that a surface looks closed at any zoom. Clouds of the head
 // keep each point's pixel (u, v): the median distance between points of
@@ -86,6 +107,7 @@ export class PointCloudViewer {
     this.points = null;
     this.mode = 'intensity';
     this.frameSphere = null;
+    this.cameras = [];  // [{index, name, points, colour}] of a merged cloud
     this.renderer = new WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
     this.renderer.setClearColor(new Color(BACKGROUND));
@@ -130,11 +152,26 @@ export class PointCloudViewer {
   // Shows the cloud of a PLY file's bytes; returns its number of points.
   load(bytes) {
     const loader = new PLYLoader();
-    loader.setCustomPropertyNameMapping({ intensity: ['intensity'], u: ['u'], v: ['v'] });
+    loader.setCustomPropertyNameMapping({ intensity: ['intensity'], u: ['u'], v: ['v'], camera: ['camera'] });
     const geometry = loader.parse(bytes);
     geometry.deleteAttribute('normal');
     this.clear();
     const count = geometry.getAttribute('position').count;
+    this.cameras = [];
+    const camera = geometry.getAttribute('camera');
+    if (camera && camera.count === count && count > 0) {
+      const names = plyCameraNames(bytes);
+      const counts = new Map();
+      for (let i = 0; i < count; i++) counts.set(camera.getX(i), (counts.get(camera.getX(i)) || 0) + 1);
+      names.forEach((name, index) => {
+        if (name !== undefined && !counts.has(index)) counts.set(index, 0);
+      });
+      this.cameras = [...counts.keys()]
+        .sort((a, b) => a - b)
+        .map((index) => ({ index, name: names[index] ?? `camera ${index}`, points: counts.get(index), colour: cameraColour(index) }));
+    } else if (camera) {
+      geometry.deleteAttribute('camera');
+    }
     geometry.setAttribute('color', new BufferAttribute(new Float32Array(count * 3), 3));
     geometry.computeBoundingSphere();
     // A point covers 1.5 spacings on screen at any distance: three.js draws an
@@ -151,15 +188,26 @@ export class PointCloudViewer {
   }
 
   // Colours the points by 'intensity' (normalised to its 1–99 % range; grey
-  // ramp) or 'depth' (z, colour ramp). Without an intensity property: depth.
+  // ramp), 'depth' (z, colour ramp) or 'camera' (a merged cloud: one colour
+  // per camera, its brightness by intensity). Without an intensity property:
+  // depth; without a camera property, 'camera' is 'intensity'.
   colour(mode) {
     this.mode = mode;
     if (!this.points) return;
     const geometry = this.points.geometry;
     const intensity = geometry.getAttribute('intensity');
+    const camera = geometry.getAttribute('camera');
     const colours = geometry.getAttribute('color');
     const out = [0, 0, 0];
-    if (mode === 'intensity' && intensity) {
+    if (mode === 'camera' && camera) {
+      const shade = intensity ? quantileRange(intensity.array) : null;
+      const colour = new Color();
+      for (let i = 0; i < camera.count; i++) {
+        colour.setHex(cameraColour(camera.getX(i)));
+        const g = shade ? 0.35 + 0.65 * Math.min(1, Math.max(0, (intensity.getX(i) - shade[0]) / (shade[1] - shade[0]))) : 1;
+        colours.setXYZ(i, colour.r * g, colour.g * g, colour.b * g);
+      }
+    } else if ((mode === 'intensity' || mode === 'camera') && intensity) {
       const values = intensity.array;
       const [lo, hi] = quantileRange(values);
       for (let i = 0; i < values.length; i++) {
