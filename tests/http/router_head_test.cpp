@@ -1,0 +1,43 @@
+// Routing of the 360° head's endpoints (issue #10): /api/v1/head and a ring
+// scan's per-camera clouds.
+#include <gtest/gtest.h>
+
+#include "firmware/http/router.hpp"
+
+namespace cylscan::firmware::http {
+namespace {
+
+TEST(RouterHead, HeadTakesGetAndPut) {
+  EXPECT_EQ(route("GET", "/api/v1/head").endpoint, Endpoint::Head);
+  EXPECT_EQ(route("PUT", "/api/v1/head").status, 0);
+  const Route post = route("POST", "/api/v1/head");
+  EXPECT_EQ(post.status, 405);
+  EXPECT_EQ(post.allow, "GET, HEAD, PUT");
+  EXPECT_EQ(route("GET", "/api/v1/head/main").status, 404);
+  EXPECT_TRUE(needsToken(Endpoint::Head));
+}
+
+TEST(RouterHead, CameraCloudsNameTheCamera) {
+  const Route r = route("GET", "/api/v1/scans/20261201-160102-3f9a/clouds/cam90.ply");
+  EXPECT_EQ(r.endpoint, Endpoint::ScanCameraCloud);
+  EXPECT_EQ(r.status, 0);
+  EXPECT_EQ(r.param_status, 0);
+  EXPECT_EQ(r.id, "20261201-160102-3f9a");
+  EXPECT_EQ(r.name, "cam90");
+  EXPECT_TRUE(needsToken(Endpoint::ScanCameraCloud));
+  EXPECT_EQ(route("DELETE", "/api/v1/scans/20261201-160102-3f9a/clouds/cam90.ply").status, 405);
+}
+
+TEST(RouterHead, BadCameraCloudNamesAreNotFound) {
+  for (const char* file : {"cam90", "cam90.png", ".ply", "CAM90.ply", "cam_90.ply"}) {
+    const Route r = route("GET", std::string("/api/v1/scans/20261201-160102-3f9a/clouds/") + file);
+    EXPECT_EQ(r.param_status, 404) << file;
+    EXPECT_TRUE(r.name.empty()) << file;
+  }
+  EXPECT_EQ(route("GET", "/api/v1/scans/BAD/clouds/main.ply").param_status, 404);
+  EXPECT_EQ(route("GET", "/api/v1/scans/20261201-160102-3f9a/clouds/../main.ply").status, 400);
+  EXPECT_EQ(route("GET", "/api/v1/scans/20261201-160102-3f9a/other/main.ply").status, 404);
+}
+
+}  // namespace
+}  // namespace cylscan::firmware::http
