@@ -65,6 +65,13 @@ int PhaseSink::folded(std::string_view name) const {
   return camera(name).folded;
 }
 
+std::size_t PhaseSink::workingStateBytes() const {
+  std::size_t bytes = 0;
+  for (const auto& [name, c] : cameras_)
+    bytes += c.engine.workingStateBytes();
+  return bytes;
+}
+
 algo::PhaseMaps PhaseSink::finalize(std::string_view name) {
   return camera(name).engine.finalize();
 }

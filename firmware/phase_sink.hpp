@@ -3,6 +3,7 @@
 // so a K-camera scan holds O(K × pixels).
 #pragma once
 
+#include <cstddef>
 #include <map>
 #include <string>
 #include <string_view>
@@ -31,6 +32,8 @@ class PhaseSink final : public FrameSink {
   algo::PhaseMaps finalize(std::string_view camera);
   algo::CompactPhase finalizeCompact(std::string_view camera);
   int folded(std::string_view camera) const;
+  // The engines' working state, all cameras (O(K × pixels): no frame is kept).
+  std::size_t workingStateBytes() const;
   // The geometry a camera's engine uses (its own angles, the set's period).
   algo::FringeSetGeometry geometry(std::string_view camera, formats::FringeSetId set) const;
 

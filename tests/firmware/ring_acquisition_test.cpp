@@ -246,6 +246,9 @@ TEST(RingAcquisition, EveryCameraGetsBothSetsInItsRoleAndTheHeadsPhase) {
     }
     EXPECT_EQ(phase.folded(camera), 2 * n);
   }
+  // Memory: one engine of 16 bytes a pixel per camera (algo/phase_engine.hpp),
+  // no frames kept: O(K × pixels).
+  EXPECT_EQ(phase.workingStateBytes(), kCameras.size() * 16u * 160u * 128u);
   // Both roles occur on this head: cameras face both halves in sweep 1.
   EXPECT_FALSE(scan.plan.swapped.empty());
   EXPECT_LT(scan.plan.swapped.size(), kCameras.size());
