@@ -731,10 +731,16 @@ json poseJson(const sim::RigidMotion& m) {
 void runCameraDataset(const SimulateRequest& request, const RingSetup& setup,
                       WallClock::time_point started) {
   const std::string& name = request.camera;
-  if (std::find(setup.cameras.begin(), setup.cameras.end(), name) == setup.cameras.end()) {
+  const auto it = std::find(setup.cameras.begin(), setup.cameras.end(), name);
+  if (it == setup.cameras.end()) {
     throw std::invalid_argument("simulate: --camera '" + name + "' is not a camera of " +
                                 setup.profile.file.string());
   }
+  // Each direction its own noise (main's dataset keeps --seed): the cameras
+  // share their intrinsics and aux's relative pose, so with one seed their
+  // checkerboard images, hence their calibration errors, would be identical.
+  SimulateRequest direction = request;
+  direction.seed = request.seed + static_cast<std::uint64_t>(it - setup.cameras.begin());
   const sim::HeadConfig view = sim::headForCamera(setup.head, name);
   FringePlan f;
   f.frames = setup.plan.ring->frames;
@@ -748,7 +754,7 @@ void runCameraDataset(const SimulateRequest& request, const RingSetup& setup,
                                                   sim::CylindricalProjector(view.projector));
   f.azimuth_min = range[0];
   f.azimuth_max = range[1];
-  runDataset(request, view, f, {{"head_camera", name}},
+  runDataset(direction, view, f, {{"head_camera", name}},
              {{"plan", "ring"},
               {"ring", ringJson(setup.plan)},
               {"board", setup.profile.file.string()},
