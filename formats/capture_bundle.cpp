@@ -40,6 +40,9 @@ std::optional<std::string> cameraNameFault(std::string_view name) {
   return std::nullopt;
 }
 
+constexpr const char* kMainInCameraSets =
+    "\"camera_sets\" has camera \"main\", whose sets are the top-level \"sets\"";
+
 // Where a camera's set is in capture.json: "sets.high" or "camera_sets.cam90.high".
 std::string setWhere(std::string_view camera, FringeSetId id, bool own = true) {
   if (!own) return "sets." + std::string(toString(id));
@@ -85,6 +88,7 @@ std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
     if (std::find(info.cameras.begin(), info.cameras.end(), camera) == info.cameras.end()) {
       return "\"camera_sets\" has camera " + inQuotes(camera) + ", which is not in \"cameras\"";
     }
+    if (camera == "main") return kMainInCameraSets;
     for (const FringeSetId id : kFringeSets) {
       if (auto fault = setFault(sets.set(id), setWhere(camera, id))) return fault;
     }
@@ -179,6 +183,7 @@ class CaptureJsonParser {
       if (std::find(info.cameras.begin(), info.cameras.end(), camera) == info.cameras.end()) {
         fail("\"camera_sets\" has camera " + inQuotes(camera) + ", which is not in \"cameras\"");
       }
+      if (camera == "main") fail(kMainInCameraSets);
       const std::string where = "camera_sets." + camera;
       if (!value.is_object()) {
         fail(inQuotes(where) + " is a " + jsonTypeName(value) + ", not an object");

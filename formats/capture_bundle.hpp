@@ -40,7 +40,8 @@ struct CaptureInfo {
   // Extension (spec §1 readers ignore it): the cameras whose sets are not the
   // top-level ones, in capture.json as
   //   "camera_sets": {"cam90": {"high": {"period_deg", "stage_deg"}, "low": {...}}}.
-  // Every key is a camera of `cameras`; each has both sets. Extras inside those
+  // Every key is a camera of `cameras` other than "main" (whose sets are the
+  // top-level ones); each has both sets. Extras inside those
   // set objects stay in `extra` under "camera_sets" → camera → set.
   std::map<std::string, CameraSets, std::less<>> camera_sets;
   // Unknown/extra fields, kept on write. Mirrors the layout of capture.json

@@ -168,6 +168,9 @@ TEST_F(CameraSetsTest, ACamerasSetsAreValidatedLikeTheTopLevelOnes) {
       {"unknown camera",
        [](json& d) { d["camera_sets"]["side"] = d["camera_sets"]["cam90"]; },
        {"\"camera_sets\" has camera \"side\"", "not in \"cameras\""}},
+      {"main's own sets",
+       [](json& d) { d["camera_sets"]["main"] = d["camera_sets"]["cam90"]; },
+       {"\"camera_sets\" has camera \"main\"", "top-level \"sets\""}},
       {"camera entry not an object",
        [](json& d) { d["camera_sets"]["cam90"] = 3; },
        {"\"camera_sets.cam90\" is a number"}},
@@ -218,6 +221,9 @@ TEST_F(CameraSetsTest, ACamerasSetsAreValidatedLikeTheTopLevelOnes) {
 TEST_F(CameraSetsTest, TheWriterRefusesCameraSetsOfUnknownCamerasOrBadSets) {
   CaptureInfo info = ringInfo();
   info.camera_sets["side"] = info.camera_sets["cam90"];
+  EXPECT_THROW(CaptureBundleWriter(bundle(), info), std::invalid_argument);
+  info = ringInfo();
+  info.camera_sets["main"] = info.camera_sets["cam90"];  // main's sets are the top-level ones
   EXPECT_THROW(CaptureBundleWriter(bundle(), info), std::invalid_argument);
   info = ringInfo();
   info.camera_sets["cam90"].low.stage_deg.resize(2);
