@@ -370,5 +370,48 @@ TEST(RingAcquisition, FourCamerasTakeTheTimeOfOneContinuous) {
   expectFourCamerasAsFastAsOne({{"mode = \"stop\"", "mode = \"continuous\""}}, "continuous", true);
 }
 
+// Retries work per camera as before: a swapped camera's lost frame at the end
+// of sweep 1 (its low set) sweeps it again, every camera skipping the frames
+// it has; a second loss fails the scan naming the camera's own set.
+TEST(RingAcquisition, ALostFrameOfASwappedCameraIsSweptAgain) {
+  TempDir dir;
+  Scan scan(ringBoard(dir, {{"mode = \"stop\"", "mode = \"continuous\""}}));
+  ASSERT_FALSE(scan.plan.swapped.empty());
+  const std::string swapped = *scan.plan.swapped.begin();
+  const int n = scan.plan.ring->frames;
+  PhaseSink phase(scan.plan, {});
+  Acquisition acquisition(scan.board);
+  const ScanReport report =
+      acquisition.run(scan.options, scan.plan, phase, [&](const ScanProgress& p) {
+        // The sweep's last frame: nothing follows it, so its loss is a timeout.
+        if (p.frames_done == n - 1) scan.head().dropFrames(swapped, 1);
+      });
+  EXPECT_EQ(report.retries, 1);
+  EXPECT_EQ(report.trigger_jitter.count, static_cast<std::uint64_t>(3 * n)) << "sweep 1 twice";
+  for (const std::string& camera : kCameras)
+    EXPECT_EQ(phase.folded(camera), 2 * n) << camera;
+  const CameraTruth truth = truthOf(scan.head(), swapped, report);
+  const CameraPhaseError e = compareWithHead(scan.head(), swapped, phase.finalize(swapped), truth);
+  EXPECT_LT(e.absolute.rms, 0.01);  // the tolerances of expectPhaseOfHead
+  EXPECT_LT(e.absolute.worst, 0.1);
+
+  TempDir again_dir;
+  Scan again(ringBoard(again_dir));
+  PhaseSink again_phase(again.plan, {});
+  Acquisition again_acquisition(again.board);
+  try {
+    again_acquisition.run(again.options, again.plan, again_phase, [&](const ScanProgress& p) {
+      if (p.frames_done == 5) again.head().dropFrames(swapped, 2);
+    });
+    ADD_FAILURE() << "the scan should fail";
+  } catch (const ScanError& e) {
+    EXPECT_NE(std::string(e.what()).find("camera '" + swapped + "': no frame 5 of the low set"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(again.head().lightOn());
+  EXPECT_FALSE(again.head().stage().enabled());
+}
+
 }  // namespace
 }  // namespace cylscan::firmware
