@@ -761,7 +761,10 @@ void ScanService::writeRingClouds(PhaseSink& phase, const algo::PhaseMaps& main_
   }
   std::vector<CameraCloud> merged_parts;
   std::string note;
-  if (missing.empty()) {
+  if (clouds.empty()) {
+    result["cloud"] = "none";
+    result["cloud_note"] = "no camera is calibrated (PUT /api/v1/calibration?camera=NAME)";
+  } else if (missing.empty()) {
     merged_parts = std::move(clouds);
     result["cloud"] = "merged";
   } else {
