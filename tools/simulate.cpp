@@ -712,14 +712,22 @@ RingSetup ringSetup(const SimulateRequest& request) {
   return r;
 }
 
+// The ring layout as the firmware's bundles record it ("ring" in capture.json).
 json ringJson(const firmware::ScanPlan& plan) {
-  json cameras = json::object();
-  for (const auto& c : plan.ring->cameras)
+  const firmware::RingLayout& r = *plan.ring;
+  json cameras = json::object(), margins = json::object();
+  for (const auto& c : r.cameras) {
     cameras[c.camera] = formats::toString(c.first_sweep_set);
-  return {{"start_deg", plan.ring->start_deg},
-          {"step_deg", plan.ring->step_deg},
-          {"frames", plan.ring->frames},
-          {"cameras", cameras}};
+    margins[c.camera] = {{"half", c.half_margin_deg}, {"window", c.window_margin_deg}};
+  }
+  return {{"start_deg", r.start_deg},
+          {"sweep2_start_deg", r.sweep2_start_deg},
+          {"step_deg", r.step_deg},
+          {"step_steps", r.step_steps},
+          {"frames", r.frames},
+          {"cameras", cameras},
+          {"margins_deg", margins},
+          {"noise_gain", {{"high", r.noise_gain_high}, {"low", r.noise_gain_low}}}};
 }
 
 json poseJson(const sim::RigidMotion& m) {
