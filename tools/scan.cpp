@@ -105,7 +105,13 @@ void runScan(const ScanRequest& request) {
       request.board, request.scene.empty() ? std::nullopt : std::optional<fs::path>(request.scene));
   const drivers::BoardProfile& profile = board.profile();
   const firmware::ScanOptions options = optionsFor(request, profile);
-  const firmware::ScanPlan plan = firmware::planScan(options, profile.stage);
+  // A ring is the head's layout, planned for every camera of the profile even
+  // when fewer are scanned: each camera's quasi-calibration holds for the
+  // phase origin (its sets' first angles) of that layout only.
+  firmware::ScanOptions layout = options;
+  if (options.plan == drivers::PlanKind::Ring)
+    layout.cameras = firmware::scanOptionsFrom(profile).cameras;
+  const firmware::ScanPlan plan = firmware::planScan(layout, profile.stage);
   const drivers::CameraProfile& main = profile.camera("main");
   if (calib && main.config.width > 0) {
     try {
