@@ -249,8 +249,10 @@ void addCalibrateHeadCommand(CLI::App& app) {
       ->required();
   cmd->add_option("--out", request->out, "head.json to write")->required();
   cmd->add_option(
-      "--turn", request->turns,
-      "BUNDLE=DEG: a bundle's turntable angle (default: its capture.json turntable_deg)");
+         "--turn", request->turns,
+         "BUNDLE=DEG: a bundle's turntable angle (default: its capture.json turntable_deg); "
+         "repeat --turn for several")
+      ->allow_extra_args(false);
   cmd->add_option("--radius", request->radius_mm,
                   "the target spheres' radius in mm, used to find them (0 = any; default 25)");
   cmd->add_option("--spheres", request->spheres, "the target's sphere count (default 4)");

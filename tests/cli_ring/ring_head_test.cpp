@@ -217,6 +217,47 @@ TEST_F(RingHead, MergedSurroundCloudPlacesEverySphere) {
   EXPECT_EQ(spheres, 4);
 }
 
+TEST_F(RingHead, CalibrateHeadNamesWhatIsMissing) {
+  const std::string calib = " --calib-dir " + (kFixture / "calib").string();
+  const std::string out = " --out " + (work_->path() / "bad-head.json").string();
+  const fs::path tt = kFixture / "turntable";
+  // A bundle without turntable_deg, and no --turn for it.
+  const fs::path surround = kFixture / "surround" / "test" / "surround";
+  test::ToolResult r = test::runTool("calibrate-head" + calib + out + " " + surround.string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("turntable_deg"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("capture.json"), std::string::npos) << r.output;
+  // Main at one angle only: the axis is not determined.
+  std::string one_turn;
+  for (const char* id : {"turn00", "turn01", "turn02", "turn03"})
+    one_turn += " " + (tt / id).string();
+  r = test::runTool("calibrate-head" + calib + out + one_turn);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("two turntable angles"), std::string::npos) << r.output;
+  // A camera that never saw the target.
+  r = test::runTool("calibrate-head" + calib + out + " " + (tt / "turn00").string() + " " +
+                    (tt / "turn04").string() + " " + (tt / "turn05").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("camera 'cam180'"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(work_->path() / "bad-head.json"));
+  // --turn overrides capture.json (here with the same angles: the same result).
+  std::string bundles, turns;
+  for (const auto& entry : fs::directory_iterator(tt)) {
+    const std::string name = entry.path().filename().string();
+    if (!entry.is_directory() || !name.starts_with("turn")) continue;
+    bundles += " " + entry.path().string();
+    const json capture = readJson(entry.path() / "capture.json");
+    turns += " --turn " + entry.path().string() + "=" +
+             std::to_string(capture["turntable_deg"].get<double>());
+  }
+  r = test::runTool("calibrate-head" + calib + out + turns + bundles);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const formats::HeadExtrinsics a = formats::readHeadExtrinsics(headFile());
+  const formats::HeadExtrinsics b = formats::readHeadExtrinsics(work_->path() / "bad-head.json");
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(a.pose("cam90").T[i], b.pose("cam90").T[i], 1e-9);
+}
+
 // The held-out sphere of turntable/check/: each check bundle is a turn that
 // brings it before one camera; its centre found in that camera's cloud, taken
 // to the head frame by the extrinsics and back to the world (the head frame
