@@ -280,16 +280,19 @@ class PlyParser {
     return header;
   }
 
-  // "comment camera <index> <name>": an index 0..255 and one name word.
+  // "comment camera <index> <name>" (a merged cloud's camera names): an
+  // index 0..255 and one name word. Other comments that start with "camera"
+  // (e.g. another program's "camera model …") are ordinary comments.
   template <class BadLine>
   static void checkCameraComment(const std::vector<std::string_view>& words,
                                  const BadLine& bad_line) {
-    unsigned index = 0;
-    if (words.size() != 4) bad_line("expected \"comment camera <index> <name>\"");
+    if (words.size() < 3) return;
+    unsigned long index = 0;
     const auto [ptr, ec] =
         std::from_chars(words[2].data(), words[2].data() + words[2].size(), index);
-    if (ec != std::errc() || ptr != words[2].data() + words[2].size() || index > 255)
-      bad_line("the camera index is not an integer 0..255");
+    if (ptr != words[2].data() + words[2].size() || ec == std::errc::invalid_argument) return;
+    if (ec != std::errc() || index > 255) bad_line("the camera index is not an integer 0..255");
+    if (words.size() != 4) bad_line("expected \"comment camera <index> <name>\"");
   }
 
   void checkVertexElement(const Element& vertex) const {

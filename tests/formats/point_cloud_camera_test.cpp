@@ -70,10 +70,20 @@ TEST_F(MergedCloudTest, CamerasWithOtherPropertiesAreNotMerged) {
 }
 
 TEST_F(MergedCloudTest, AMalformedCameraCommentIsRefused) {
-  writeText(file(),
-            "ply\nformat ascii 1.0\ncomment camera x main\nelement vertex 0\nproperty float x\n"
-            "property float y\nproperty float z\nend_header\n");
+  const auto with = [](const std::string& comment) {
+    return "ply\nformat ascii 1.0\n" + comment +
+           "\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+  };
+  writeText(file(), with("comment camera 300 main"));
   EXPECT_TRUE(throwsInputError([&] { readPly(file()); }, file(), {"camera index"}));
+  writeText(file(), with("comment camera 1 two words"));
+  EXPECT_TRUE(
+      throwsInputError([&] { readPly(file()); }, file(), {"comment camera <index> <name>"}));
+  // Another program's camera comment is an ordinary one.
+  writeText(file(), with("comment camera model XYZ-100"));
+  const PointCloud cloud = readPly(file());
+  EXPECT_EQ(cloud.comments, (std::vector<std::string>{"camera model XYZ-100"}));
+  EXPECT_TRUE(cameraNamesOf(cloud).empty());
 }
 
 TEST_F(MergedCloudTest, OtherCommentsAreKept) {
