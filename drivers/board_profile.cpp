@@ -236,6 +236,10 @@ ScanProfile readScan(TableReader r) {
     r.require(!r.has("frames_low") || s.frames_low == s.frames_high, "frames_low",
               "must equal frames_high with plan = \"ring\" (both sweeps have the same frames)");
     s.frames_low = s.frames_high;
+    for (const char* key : {"high_start_deg", "low_start_deg"}) {
+      r.require(!r.has(key), key,
+                "not used with plan = \"ring\" (the planner computes the sweeps' starts)");
+    }
   }
   r.finish();
   return s;

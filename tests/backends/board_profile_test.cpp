@@ -308,6 +308,9 @@ TEST(BoardProfileFaults, BadRingValues) {
   expectFault(profileError(dir, base + "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
                                        "frames_high = 25\nframes_low = 20\n"),
               file, 20, "scan.frames_low", "must equal frames_high");
+  expectFault(profileError(dir, base + "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
+                                       "high_start_deg = 235.98\n"),
+              file, 19, "scan.high_start_deg", "not used with plan = \"ring\"");
 }
 
 TEST(BoardProfileFaults, SyntaxError) {
