@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <memory>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -90,16 +91,13 @@ void expectFocalWithin(const cv::Matx33d& estimated, const cv::Matx33d& truth, d
 class EndToEnd : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new TempDir();
+    dir_ = std::make_unique<TempDir>();
     const auto run =
         runTool("simulate --json --width 320 --height 256 --boards 64 --out " + data().string());
     simulated_ = run.exit_code == 0;
     if (!simulated_) std::cerr << "simulate failed:\n" << run.output << "\n";
   }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
+  static void TearDownTestSuite() { dir_.reset(); }
   void SetUp() override { ASSERT_TRUE(simulated_) << "cylscan simulate failed"; }
 
   static fs::path data() { return dir_->path() / "data"; }
@@ -281,11 +279,11 @@ class EndToEnd : public ::testing::Test {
     EXPECT_LT(dq.rms, 1.0);
   }
 
-  static TempDir* dir_;
+  static std::unique_ptr<TempDir> dir_;
   static bool simulated_;
 };
 
-TempDir* EndToEnd::dir_ = nullptr;
+std::unique_ptr<TempDir> EndToEnd::dir_;
 bool EndToEnd::simulated_ = false;
 
 // One test: the steps depend on each other's files, and CTest runs every

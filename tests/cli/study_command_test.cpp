@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -44,18 +45,18 @@ json lastJsonLine(const ToolResult& run) {
 class StudyCommand : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new TempDir();
+    dir_ = std::make_unique<TempDir>();
     const auto run = runTool(
         "study --quick --sphere-poses 2 --plane-poses 2 --repeats 2 --no-refine --keep-clouds "
         "--json --out " +
         out().string());
     ran_ = run.exit_code == 0;
     if (!ran_) std::cerr << "study failed:\n" << run.output << "\n";
-    results_ = new json(ran_ ? lastJsonLine(run) : json::object());
+    results_ = std::make_unique<json>(ran_ ? lastJsonLine(run) : json::object());
   }
   static void TearDownTestSuite() {
-    delete results_;
-    delete dir_;
+    results_.reset();
+    dir_.reset();
   }
   void SetUp() override { ASSERT_TRUE(ran_) << "cylscan study failed"; }
 
@@ -172,14 +173,14 @@ class StudyCommand : public ::testing::Test {
     }
   }
 
-  static TempDir* dir_;
+  static std::unique_ptr<TempDir> dir_;
   static bool ran_;
-  static json* results_;
+  static std::unique_ptr<json> results_;
 };
 
-TempDir* StudyCommand::dir_ = nullptr;
+std::unique_ptr<TempDir> StudyCommand::dir_;
 bool StudyCommand::ran_ = false;
-json* StudyCommand::results_ = nullptr;
+std::unique_ptr<json> StudyCommand::results_;
 
 // One test: the study runs once (CTest runs every test in a process of its own).
 TEST_F(StudyCommand, ReportFiguresNumbersAndBudget) {

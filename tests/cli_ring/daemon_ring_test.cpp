@@ -38,7 +38,8 @@ std::string readBytes(const fs::path& file) {
 class DaemonRing : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!fs::exists(kFixture / "ready")) GTEST_SKIP() << "no fixture " << kFixture;
+    if (!fs::exists(kFixture / "ready"))
+      FAIL() << "no fixture " << kFixture << " (ctest runs fixture.ring_head first)";
     std::string bundles;
     for (const auto& entry : fs::directory_iterator(kFixture / "turntable")) {
       if (entry.is_directory() && entry.path().filename().string().starts_with("turn"))

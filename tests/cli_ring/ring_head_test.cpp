@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -81,35 +82,33 @@ class RingHead : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (!fs::exists(kFixture / "ready")) return;
-    work_ = new test::TempDir();
+    work_ = std::make_unique<test::TempDir>();
     std::string bundles;
     for (const auto& entry : fs::directory_iterator(kFixture / "turntable")) {
       if (entry.is_directory() && entry.path().filename().string().starts_with("turn"))
         bundles += " " + entry.path().string();
     }
     const fs::path head = work_->path() / "head.json";
-    calibrate_ = new test::ToolResult(test::runTool("calibrate-head --json --calib-dir " +
-                                                    (kFixture / "calib").string() + " --out " +
-                                                    head.string() + bundles));
+    calibrate_ = std::make_unique<test::ToolResult>(
+        test::runTool("calibrate-head --json --calib-dir " + (kFixture / "calib").string() +
+                      " --out " + head.string() + bundles));
   }
   static void TearDownTestSuite() {
-    delete calibrate_;
-    delete work_;
-    calibrate_ = nullptr;
-    work_ = nullptr;
+    calibrate_.reset();
+    work_.reset();
   }
   void SetUp() override {
     if (!fs::exists(kFixture / "ready"))
-      GTEST_SKIP() << "no fixture " << kFixture << " (run fixture.ring_head)";
+      FAIL() << "no fixture " << kFixture << " (ctest runs fixture.ring_head first)";
     ASSERT_EQ(calibrate_->exit_code, 0) << calibrate_->output;
   }
   static fs::path headFile() { return work_->path() / "head.json"; }
 
-  static test::TempDir* work_;
-  static test::ToolResult* calibrate_;
+  static std::unique_ptr<test::TempDir> work_;
+  static std::unique_ptr<test::ToolResult> calibrate_;
 };
-test::TempDir* RingHead::work_ = nullptr;
-test::ToolResult* RingHead::calibrate_ = nullptr;
+std::unique_ptr<test::TempDir> RingHead::work_;
+std::unique_ptr<test::ToolResult> RingHead::calibrate_;
 
 TEST_F(RingHead, CalibrateHeadRecoversTheTrueExtrinsics) {
   const json truth = readJson(kFixture / "turntable" / "truth.json");
