@@ -6,14 +6,25 @@
 #
 #   bash scripts/demo.sh            # serve until Ctrl-C
 #   bash scripts/demo.sh --once     # one scan through the API, then stop
+#   bash scripts/demo.sh --360      # the 360° head (board/sim360, four cameras
+#                                   # at 320x256): every camera calibrated one
+#                                   # direction at a time, the extrinsics on a
+#                                   # turntable, the merged cloud in the page
 #
 # The calibration (simulate, calibrate-stereo, calibrate: a few minutes at the
-# head's full 1000x800) is kept in out/demo and reused by later runs.
+# head's full 1000x800) is kept in out/demo (out/demo360) and reused by later runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 once=0
-if [ "${1:-}" = "--once" ]; then once=1; shift; fi
-out=${1:-out/demo}
+ring=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --once) once=1; shift ;;
+    --360) ring=1; shift ;;
+    *) break ;;
+  esac
+done
+if [ "$ring" -eq 1 ]; then out=${1:-out/demo360}; else out=${1:-out/demo}; fi
 listen=${CYLSCAN_LISTEN:-127.0.0.1:8080}
 
 bash scripts/install-deps.sh
@@ -28,7 +39,19 @@ cylscand=$bin/firmware/daemon/cylscand
 mkdir -p "$out"
 data="$out/dataset"
 
-if [ ! -f "$out/calib.bin" ]; then
+board=board/sim
+if [ "$ring" -eq 1 ]; then
+  # The ring head's calibration is the test fixture's recipe (tests/fixtures/
+  # ring_head.cmake: per direction simulate --camera NAME, calibrate-stereo,
+  # calibrate; the turntable dataset), then the extrinsics from it.
+  echo "== the 360° head: calibrate each camera, one direction at a time (a few minutes)"
+  cmake -DCYLSCAN="$cylscan" -DSOURCE_DIR="$(pwd)" -DOUT="$out" -P tests/fixtures/ring_head.cmake
+  if [ ! -f "$out/head.json" ] || [ "$out/head.json" -ot "$out/ready" ]; then
+    echo "== calibrate-head: every camera's pose in the head frame, from the turntable scans"
+    $cylscan calibrate-head --calib-dir "$out/calib" --out "$out/head.json" "$out"/turntable/turn*
+  fi
+  board="$out/board"
+elif [ ! -f "$out/calib.bin" ]; then
   echo "== simulate: the virtual head renders its calibration data (spec §6)"
   rm -rf "$data"
   $cylscan simulate --out "$data" --boards 40
@@ -42,9 +65,9 @@ if [ ! -f "$out/calib.bin" ]; then
   $cylscan evaluate sphere --radius 50 "$out/sphere_1.ply"
 fi
 
-echo "== cylscand on the virtual head (board/sim), data in $out/data"
+echo "== cylscand on the virtual head ($board), data in $out/data"
 log="$out/cylscand.log"
-coproc DAEMON { exec "$cylscand" --board board/sim --listen "$listen" --data "$out/data" 2>"$log"; }
+coproc DAEMON { exec "$cylscand" --board "$board" --listen "$listen" --data "$out/data" 2>"$log"; }
 daemon_pid=$DAEMON_PID
 trap 'kill -TERM "$daemon_pid" 2>/dev/null || true; wait "$daemon_pid" 2>/dev/null || true' EXIT
 if ! read -r -t 30 line <&"${DAEMON[0]}"; then
@@ -55,10 +78,22 @@ fi
 echo "$line"
 url=${line#*listening on }
 url=${url%% *}
-echo "== install the calibration: PUT $url/api/v1/calibration"
-curl -sS --fail-with-body -X PUT --data-binary @"$out/calib.bin" \
-  -H 'Content-Type: application/octet-stream' "$url/api/v1/calibration"
-echo
+if [ "$ring" -eq 1 ]; then
+  for qcal in "$out"/calib/*.qcal; do
+    camera=$(basename "$qcal" .qcal)
+    echo "== install $camera's calibration: PUT $url/api/v1/calibration?camera=$camera"
+    curl -sS --fail-with-body -X PUT --data-binary @"$qcal" \
+      -H 'Content-Type: application/octet-stream' "$url/api/v1/calibration?camera=$camera" >/dev/null
+  done
+  echo "== install the extrinsics: PUT $url/api/v1/head"
+  curl -sS --fail-with-body -X PUT --data-binary @"$out/head.json" \
+    -H 'Content-Type: application/json' "$url/api/v1/head" >/dev/null
+else
+  echo "== install the calibration: PUT $url/api/v1/calibration"
+  curl -sS --fail-with-body -X PUT --data-binary @"$out/calib.bin" \
+    -H 'Content-Type: application/octet-stream' "$url/api/v1/calibration"
+  echo
+fi
 
 if [ "$once" -eq 1 ]; then
   echo "== one scan through the API"
