@@ -62,6 +62,7 @@ double marginFromGrid(double lo, double hi, double origin, double spacing) {
 std::vector<double> shiftsOf(int frames, std::int64_t step_steps, double steps_per_deg,
                              double period_deg) {
   std::vector<double> shifts;
+  shifts.reserve(static_cast<std::size_t>(std::max(frames, 0)));
   for (int k = 0; k < frames; ++k) {
     shifts.push_back(2.0 * std::numbers::pi * static_cast<double>(k * step_steps) / steps_per_deg /
                      period_deg);

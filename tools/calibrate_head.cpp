@@ -200,8 +200,13 @@ void runCalibrateHead(const CalibrateHeadRequest& request) {
         (reference == nullptr || std::abs(s.turn_deg) < std::abs(reference->turn_deg)))
       reference = &s;
   }
+  if (reference == nullptr) {
+    throw std::invalid_argument("calibrate-head: the reference camera '" + request.reference +
+                                "' saw the target in none of the bundles");
+  }
   const std::vector<Eigen::Vector3d> reference_centres = centresOf(*reference);
   std::vector<algo::TargetView> views;
+  views.reserve(sightings.size());
   for (const CameraSighting& s : sightings) {
     views.push_back(
         {s.camera, s.turn_deg, algo::matchTargetOrder(reference_centres, centresOf(s)), s.bundle});
