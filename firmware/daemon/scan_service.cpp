@@ -800,7 +800,9 @@ json ScanService::installHead(std::string_view text) {
   if (head.frame != "main")
     throw ServiceError(422,
                        "head.json: \"frame\" must be main (the head frame), not " + head.frame);
-  for (const auto& [camera, pose] : head.cameras) {
+  for (const auto& entry : head.cameras) {
+    // Not a structured binding: clang 14 (bookworm) cannot capture one in a lambda.
+    const std::string& camera = entry.first;
     const bool known =
         std::any_of(profile_.cameras.begin(), profile_.cameras.end(),
                     [&](const drivers::CameraProfile& c) { return c.name == camera; });
