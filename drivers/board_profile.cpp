@@ -1,5 +1,6 @@
 #include "drivers/board_profile.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <set>
@@ -122,6 +123,8 @@ CameraProfile readCamera(TableReader r, const GpioProfile& gpio) {
   CameraProfile c;
   c.name = r.string("name", "");
   r.require(!c.name.empty(), "name", "is required");
+  r.require(isCameraName(c.name), "name",
+            "'" + c.name + "' is not a camera name (" + std::string(kCameraNameRule) + ")");
   const std::string backend = r.string("backend", "");
   if (backend == "sim") {
     c.backend = CameraBackendKind::Sim;
@@ -264,6 +267,14 @@ std::string_view toString(CameraBackendKind backend) {
       return "libcamera";
   }
   return "?";
+}
+
+bool isCameraName(std::string_view name) {
+  if (name.empty() || name.size() > 32) return false;
+  const auto lowerOrDigit = [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9'); };
+  if (!lowerOrDigit(name.front())) return false;
+  return std::all_of(name.begin(), name.end(),
+                     [&](char c) { return lowerOrDigit(c) || c == '_' || c == '-'; });
 }
 
 std::string_view toString(PlanKind plan) {

@@ -9,6 +9,7 @@
 // scan, a frame or the stage. JSON shapes are those of docs/http-api.md.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
@@ -120,6 +121,11 @@ class HeadService {
 // The files a scan may have, as the API names them.
 inline constexpr std::string_view kScanFileNames[] = {"cloud.ply", "depth.tiff", "texture.png",
                                                       "phase.png", "depth.png",  "scan.json"};
+
+inline bool isScanFileName(std::string_view name) {
+  return std::find(std::begin(kScanFileNames), std::end(kScanFileNames), name) !=
+         std::end(kScanFileNames);
+}
 
 // Scan ids are what the service makes (e.g. "20261201-160102-3f9a"):
 // [0-9a-z-], 1..64 characters, not starting with '-' or '.'. Everything

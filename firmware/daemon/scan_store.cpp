@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <system_error>
 
+#include "drivers/board_profile.hpp"
 #include "firmware/daemon/head_service.hpp"
 #include "firmware/daemon/log.hpp"
 #include "formats/atomic_file.hpp"
@@ -37,18 +38,6 @@ void syncPath(const fs::path& path, bool directory) {
     throwErrno("cannot fsync", path);
   }
   ::close(fd);
-}
-
-bool isCameraName(std::string_view name) {
-  if (name.empty() || name.size() > 32) return false;
-  return std::all_of(name.begin(), name.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
-  });
-}
-
-bool isScanFileName(std::string_view name) {
-  return std::find(std::begin(kScanFileNames), std::end(kScanFileNames), name) !=
-         std::end(kScanFileNames);
 }
 
 // Why a scan dir's record is unusable, or empty when it is fine.
@@ -208,7 +197,7 @@ std::optional<fs::path> ScanStore::file(std::string_view id, std::string_view na
 }
 
 std::optional<fs::path> ScanStore::cameraCloud(std::string_view id, std::string_view camera) const {
-  if (!isValidScanId(id) || !isCameraName(camera)) return std::nullopt;
+  if (!isValidScanId(id) || !drivers::isCameraName(camera)) return std::nullopt;
   {
     const std::lock_guard lock(mutex_);
     if (scans_.find(id) == scans_.end()) return std::nullopt;
@@ -284,7 +273,7 @@ std::uint64_t ScanStore::freeBytes() const {
 }
 
 fs::path ScanStore::calibrationPath(std::string_view camera) const {
-  if (!isCameraName(camera))
+  if (!drivers::isCameraName(camera))
     throw std::invalid_argument("not a camera name: '" + std::string(camera) + "'");
   return dir_ / "calibration" / (std::string(camera) + ".qcal");
 }

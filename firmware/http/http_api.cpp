@@ -24,6 +24,7 @@
 #include <utility>
 #include <vector>
 
+#include "drivers/board_profile.hpp"
 #include "firmware/http/auth.hpp"
 #include "firmware/http/files.hpp"
 #include "firmware/http/http_metrics.hpp"
@@ -602,7 +603,10 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       if (get) return jsonReply(200, json{{"main", service.calibrationInfo("main")}});
       const char* arg = MHD_lookup_connection_value(c, MHD_GET_ARGUMENT_KIND, "camera");
       const std::string camera = arg != nullptr ? arg : "main";
-      if (!isValidScanId(camera)) return errorReply(400, "camera: not a valid camera name");
+      if (!drivers::isCameraName(camera)) {
+        return errorReply(400, "camera: '" + camera + "' is not a camera name (" +
+                                   std::string(drivers::kCameraNameRule) + ")");
+      }
       return jsonReply(200, service.installCalibration(camera, r.body));
     }
     case Endpoint::CalibrationFile: {

@@ -4,6 +4,7 @@
 #include <array>
 #include <utility>
 
+#include "drivers/board_profile.hpp"
 #include "firmware/daemon/head_service.hpp"
 
 namespace cylscan::firmware::http {
@@ -84,11 +85,6 @@ Route withMethods(Endpoint endpoint, std::string_view method, bool get, bool pos
   return r;
 }
 
-bool isScanFileName(std::string_view name) {
-  return std::find(std::begin(kScanFileNames), std::end(kScanFileNames), name) !=
-         std::end(kScanFileNames);
-}
-
 std::string scanFileNameList() {
   std::string list;
   for (const auto name : kScanFileNames) {
@@ -97,6 +93,16 @@ std::string scanFileNameList() {
   }
   return list;
 }
+
+// `r` refused with 404 for a path parameter (id, file or camera name) that
+// breaks its rule: after the method check, so a bad method stays 405.
+Route parameterNotFound(Route r, std::string error) {
+  r.param_status = 404;
+  r.error = std::move(error);
+  return r;
+}
+
+constexpr const char* kNotAScanId = "no such scan: the id is not a valid scan id";
 
 Route notFound(std::string_view path) {
   Route r;
@@ -132,18 +138,12 @@ Route route(std::string_view method, std::string_view path) {
                       ? withMethods(Endpoint::Scan, method, true, false, false, true)
                       : withMethods(Endpoint::ScanFile, method, true, false, false, false);
         if (r.status != 0) return r;
-        if (!isValidScanId(s[3])) {
-          r.param_status = 404;
-          r.error = "no such scan: the id is not a valid scan id";
-          return r;
-        }
+        if (!isValidScanId(s[3])) return parameterNotFound(std::move(r), kNotAScanId);
         r.id = std::string(s[3]);
         if (s.size() == 5) {
           if (!isScanFileName(s[4])) {
-            r.param_status = 404;
-            r.error =
-                "no such scan file: " + std::string(s[4]) + " (one of " + scanFileNameList() + ")";
-            return r;
+            return parameterNotFound(std::move(r), "no such scan file: " + std::string(s[4]) +
+                                                       " (one of " + scanFileNameList() + ")");
           }
           r.name = std::string(s[4]);
         }
@@ -152,20 +152,15 @@ Route route(std::string_view method, std::string_view path) {
       if (s.size() == 6 && s[4] == "clouds") {
         Route r = withMethods(Endpoint::ScanCameraCloud, method, true, false, false, false);
         if (r.status != 0) return r;
-        if (!isValidScanId(s[3])) {
-          r.param_status = 404;
-          r.error = "no such scan: the id is not a valid scan id";
-          return r;
-        }
+        if (!isValidScanId(s[3])) return parameterNotFound(std::move(r), kNotAScanId);
         r.id = std::string(s[3]);
-        // <camera>.ply, the camera name by the calibration rule ([0-9a-z-], 1..64).
+        // <camera>.ply, the camera name by the board's rule (drivers::isCameraName).
         const std::string_view file = s[5];
         const std::string_view camera =
             file.ends_with(".ply") ? file.substr(0, file.size() - 4) : std::string_view{};
-        if (!isValidScanId(camera)) {
-          r.param_status = 404;
-          r.error = "no such camera cloud: " + std::string(file) + " (clouds/<camera>.ply)";
-          return r;
+        if (!drivers::isCameraName(camera)) {
+          return parameterNotFound(std::move(r), "no such camera cloud: " + std::string(file) +
+                                                     " (clouds/<camera>.ply)");
         }
         r.name = std::string(camera);
         return r;
@@ -182,11 +177,9 @@ Route route(std::string_view method, std::string_view path) {
       if (s.size() == 4) {
         Route r = withMethods(Endpoint::CalibrationFile, method, true, false, false, false);
         if (r.status != 0) return r;
-        // Camera names follow the scan id rule ([0-9a-z-], 1..64).
-        if (!isValidScanId(s[3])) {
-          r.param_status = 404;
-          r.error = "no such camera: the name is not a valid camera name";
-          return r;
+        if (!drivers::isCameraName(s[3])) {
+          return parameterNotFound(std::move(r),
+                                   "no such camera: the name is not a valid camera name");
         }
         r.name = std::string(s[3]);
         return r;

@@ -183,6 +183,21 @@ TEST(BoardProfileFaults, MissingMainCamera) {
               "camera[1].name", "twice");
 }
 
+TEST(BoardProfileFaults, CameraNamesThatCannotNameFilesOrUrls) {
+  TempDir dir;
+  const auto file = dir.path() / "board.toml";
+  for (const char* bad :
+       {"Main2", "cam 90", "../x", "-cam", "_cam", "cam.90", "a23456789012345678901234567890123"}) {
+    std::string second = v4l2Main();
+    second.replace(second.find("\"main\""), 6, std::string("\"") + bad + "\"");
+    expectFault(profileError(dir, hardwareGpio() + v4l2Main() + second), file, 18, "camera[1].name",
+                "is not a camera name (1 to 32 of a-z 0-9 _ -");
+  }
+  EXPECT_TRUE(isCameraName("cam_90"));
+  EXPECT_TRUE(isCameraName("side-left"));
+  EXPECT_FALSE(isCameraName(""));
+}
+
 TEST(BoardProfileFaults, UnknownBackend) {
   TempDir dir;
   const auto file = dir.path() / "board.toml";

@@ -29,7 +29,8 @@ TEST(RouterHead, CameraCloudsNameTheCamera) {
 }
 
 TEST(RouterHead, BadCameraCloudNamesAreNotFound) {
-  for (const char* file : {"cam90", "cam90.png", ".ply", "CAM90.ply", "cam_90.ply"}) {
+  for (const char* file : {"cam90", "cam90.png", ".ply", "CAM90.ply", "-cam.ply", "cam.90.ply",
+                           "_x.ply", "cam90.ply.ply", "a23456789012345678901234567890123.ply"}) {
     const Route r = route("GET", std::string("/api/v1/scans/20261201-160102-3f9a/clouds/") + file);
     EXPECT_EQ(r.param_status, 404) << file;
     EXPECT_TRUE(r.name.empty()) << file;
@@ -37,6 +38,23 @@ TEST(RouterHead, BadCameraCloudNamesAreNotFound) {
   EXPECT_EQ(route("GET", "/api/v1/scans/BAD/clouds/main.ply").param_status, 404);
   EXPECT_EQ(route("GET", "/api/v1/scans/20261201-160102-3f9a/clouds/../main.ply").status, 400);
   EXPECT_EQ(route("GET", "/api/v1/scans/20261201-160102-3f9a/other/main.ply").status, 404);
+}
+
+// The board's camera-name rule (drivers::isCameraName), the same for every
+// route that names a camera: what a board may call a camera can be reached.
+TEST(RouterHead, EveryNameABoardMayGiveACameraIsRouted) {
+  for (const char* camera :
+       {"main", "cam_90", "side-left", "0", "a2345678901234567890123456789012"}) {
+    const std::string id = "/api/v1/scans/20261201-160102-3f9a/clouds/";
+    const Route cloud = route("GET", id + camera + ".ply");
+    EXPECT_EQ(cloud.param_status, 0) << camera << ": " << cloud.error;
+    EXPECT_EQ(cloud.name, camera);
+    const Route calibration = route("GET", std::string("/api/v1/calibration/") + camera);
+    EXPECT_EQ(calibration.endpoint, Endpoint::CalibrationFile);
+    EXPECT_EQ(calibration.param_status, 0) << camera << ": " << calibration.error;
+    EXPECT_EQ(calibration.name, camera);
+  }
+  EXPECT_EQ(route("GET", "/api/v1/calibration/cam.90").param_status, 404);
 }
 
 }  // namespace
