@@ -485,15 +485,17 @@ StereoRefinementResult refineStereoWithPhase(const StereoGeometry& initial,
   }
   std::vector<bool> free(static_cast<std::size_t>(total), true);
   std::array<double, kGlobals> steps{};
-  for (int i = 0; i < kIntrinsics; ++i) {
-    free[static_cast<std::size_t>(kMainOffset + i)] = free_intrinsics[static_cast<std::size_t>(i)];
-    free[static_cast<std::size_t>(kAuxOffset + i)] = free_intrinsics[static_cast<std::size_t>(i)];
-    steps[static_cast<std::size_t>(kMainOffset + i)] = kIntrinsicSteps[static_cast<std::size_t>(i)];
-    steps[static_cast<std::size_t>(kAuxOffset + i)] = kIntrinsicSteps[static_cast<std::size_t>(i)];
+  // Indices as std::size_t from the start (the offsets are small non-negative constants).
+  const auto at = [](int offset, std::size_t i) { return static_cast<std::size_t>(offset) + i; };
+  for (std::size_t i = 0; i < static_cast<std::size_t>(kIntrinsics); ++i) {
+    free[at(kMainOffset, i)] = free_intrinsics[i];
+    free[at(kAuxOffset, i)] = free_intrinsics[i];
+    steps[at(kMainOffset, i)] = kIntrinsicSteps[i];
+    steps[at(kAuxOffset, i)] = kIntrinsicSteps[i];
   }
-  for (int i = 0; i < 3; ++i) {
-    steps[static_cast<std::size_t>(kRotationOffset + i)] = kRotationStep;
-    steps[static_cast<std::size_t>(kTranslationOffset + i)] = kTranslationStep;
+  for (std::size_t i = 0; i < 3; ++i) {
+    steps[at(kRotationOffset, i)] = kRotationStep;
+    steps[at(kTranslationOffset, i)] = kTranslationStep;
   }
 
   // Board poses from the main camera (PnP with the initial intrinsics).
@@ -533,6 +535,7 @@ StereoRefinementResult refineStereoWithPhase(const StereoGeometry& initial,
   StereoRefinementResult result;
   result.before = summarise(board_groups, phase_groups, x);
   std::vector<ResidualGroup*> groups;
+  groups.reserve(board_groups.size() + phase_groups.size());
   for (auto& g : board_groups)
     groups.push_back(&g);
   for (auto& g : phase_groups)

@@ -190,7 +190,7 @@ PlaneFit fitPlane(std::span<const Eigen::Vector3d> points) {
     covariance.noalias() += d * d.transpose();
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(covariance);
-  const Eigen::Vector3d lambda = eigen.eigenvalues();  // ascending
+  const Eigen::Vector3d& lambda = eigen.eigenvalues();  // ascending
   if (!(lambda(1) > 1e-12 * lambda(2)) || !(lambda(2) > 0.0))
     throw std::invalid_argument("plane fit: points are collinear");
   PlaneFit fit;

@@ -206,7 +206,10 @@ class CaptureJsonParser {
       const std::string name(toString(id));
       const auto set = sets.find(name);
       if (set == sets.end()) fail("missing set " + inQuotes(name) + " in " + inQuotes(where));
-      (id == FringeSetId::High ? high : low) = readSet(*set, where + "." + name);
+      std::string set_where = where;
+      set_where += '.';
+      set_where += name;
+      (id == FringeSetId::High ? high : low) = readSet(*set, set_where);
     }
   }
 

@@ -375,6 +375,7 @@ class PlyParser {
     std::size_t stride = 0;
     for (const Property& p : vertex.properties)
       stride += sizeOf(p.type);
+    if (stride == 0) fail("the vertex element has no properties");
     const std::size_t available = data_.size() - at;
     if (vertex.count > available / stride) {
       fail("truncated: the header declares " + std::to_string(vertex.count) + " vertices of " +

@@ -105,7 +105,9 @@ class CalibrationNodeReader {
       fail(name, "is " + std::to_string(node_rows) + "x" + std::to_string(node_cols) +
                      ", expected " + std::to_string(rows) + "x" + std::to_string(cols));
     }
-    if (node["data"].size() != static_cast<std::size_t>(rows * cols)) {
+    const std::size_t expected_values =
+        static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols);
+    if (node["data"].size() != expected_values) {
       fail(name, "has " + std::to_string(node["data"].size()) + " values in \"data\", expected " +
                      std::to_string(rows * cols));
     }
@@ -115,7 +117,7 @@ class CalibrationNodeReader {
     } catch (const cv::Exception&) {
       m.release();
     }
-    if (m.empty() || m.dims != 2 || m.total() != static_cast<std::size_t>(rows * cols)) {
+    if (m.empty() || m.dims != 2 || m.total() != expected_values) {
       fail(name, "is not an OpenCV matrix (!!opencv-matrix with rows, cols, dt, data)");
     }
     if (m.channels() != 1) {
@@ -212,7 +214,7 @@ void requireOneYamlMap(const std::string& text, const fs::path& file) {
 StereoCalibration readStereoCalibration(const fs::path& file) {
   const std::string text = readFileContents(file, kMaxFileBytes);
   if (text.empty()) throw InputError(file, "is empty, expected an OpenCV FileStorage YAML file");
-  if (text.rfind("%YAML", 0) != 0 && text.rfind("<?xml", 0) != 0 && text.rfind("{", 0) != 0) {
+  if (text.rfind("%YAML", 0) != 0 && text.rfind("<?xml", 0) != 0 && text.rfind('{', 0) != 0) {
     throw InputError(file,
                      "not an OpenCV FileStorage YAML file (it does not start with \"%YAML\")");
   }

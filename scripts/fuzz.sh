@@ -39,7 +39,7 @@ if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=cc
 
 start=$(date +%s)
 echo "== fuzz: configure and build ($build)"
-cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
   -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ "${launcher[@]}" \
   -DCYLSCAN_BUILD_FUZZ=ON -DCYLSCAN_BUILD_TESTS=OFF -DCYLSCAN_BUILD_BENCH=OFF \
   -DCYLSCAN_BUILD_WEB=OFF >/dev/null

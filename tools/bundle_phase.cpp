@@ -10,8 +10,6 @@
 namespace cylscan::tools {
 namespace {
 
-namespace fs = std::filesystem;
-
 algo::FringeSet toAlgo(formats::FringeSetId id) {
   return id == formats::FringeSetId::High ? algo::FringeSet::High : algo::FringeSet::Low;
 }

@@ -42,8 +42,6 @@
 namespace cylscan::tools {
 namespace {
 
-namespace fs = std::filesystem;
-
 // A view whose RMS reprojection error exceeds max(kOutlierFactor × median,
 // kOutlierFloorPx) is an outlier: a misdetected corner or a blurred board.
 constexpr double kOutlierFactor = 3.0;

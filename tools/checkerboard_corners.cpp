@@ -30,17 +30,15 @@ cv::Mat readGrey8(const fs::path& file) {
 // The smallest distance between neighbouring corners, in pixels.
 double cornerSpacing(const Corners& corners, cv::Size pattern) {
   double spacing = 1e9;
+  const auto corner = [&](int r, int c) {
+    return corners[static_cast<std::size_t>(r) * static_cast<std::size_t>(pattern.width) +
+                   static_cast<std::size_t>(c)];
+  };
   for (int r = 0; r < pattern.height; ++r) {
     for (int c = 0; c < pattern.width; ++c) {
-      const cv::Point2f p = corners[static_cast<std::size_t>(r * pattern.width + c)];
-      if (c + 1 < pattern.width) {
-        spacing = std::min(
-            spacing, cv::norm(p - corners[static_cast<std::size_t>(r * pattern.width + c + 1)]));
-      }
-      if (r + 1 < pattern.height) {
-        spacing = std::min(
-            spacing, cv::norm(p - corners[static_cast<std::size_t>((r + 1) * pattern.width + c)]));
-      }
+      const cv::Point2f p = corner(r, c);
+      if (c + 1 < pattern.width) spacing = std::min(spacing, cv::norm(p - corner(r, c + 1)));
+      if (r + 1 < pattern.height) spacing = std::min(spacing, cv::norm(p - corner(r + 1, c)));
     }
   }
   return spacing;

@@ -8,7 +8,9 @@
 #include "formats/input_error.hpp"
 #include "tools/commands.hpp"
 
-int main(int argc, char** argv) {
+namespace {
+
+int runCli(int argc, char** argv) {
   CLI::App app{"cylscan: firmware tools of the cylindrical fringe-projection scanning head"};
   app.set_version_flag("--version", CYLSCAN_VERSION);
   app.require_subcommand(1);
@@ -38,4 +40,20 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+}  // namespace
+
+// Anything that escapes the command (its setup included) is an internal error.
+int main(int argc, char** argv) {
+  try {
+    return runCli(argc, argv);
+  } catch (const std::exception& e) {
+    std::fputs("cylscan: ", stderr);
+    std::fputs(e.what(), stderr);
+    std::fputs("\n", stderr);
+  } catch (...) {
+    std::fputs("cylscan: unknown error\n", stderr);
+  }
+  return 1;
 }

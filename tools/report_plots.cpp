@@ -11,9 +11,17 @@
 namespace cylscan::tools {
 namespace {
 
-const cv::Scalar kBlack(0, 0, 0);
-const cv::Scalar kWhite(255, 255, 255);
-const cv::Scalar kNoData(215, 215, 215);
+// Colours as functions, not globals: cv::Scalar's constructor may throw, and a
+// throwing static initialiser cannot be caught (cert-err58-cpp).
+cv::Scalar black() {
+  return {0, 0, 0};
+}
+cv::Scalar white() {
+  return {255, 255, 255};
+}
+cv::Scalar noData() {
+  return {215, 215, 215};
+}
 constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
 
 // Blue (−) → white (0) → red (+), as a 256-entry LUT for cv::applyColorMap.
@@ -37,7 +45,7 @@ std::string format(double value, const char* pattern) {
 
 void putLabel(cv::Mat& image, const std::string& text, cv::Point at, double scale = 0.45,
               int thickness = 1) {
-  cv::putText(image, text, at, kFont, scale, kBlack, thickness, cv::LINE_AA);
+  cv::putText(image, text, at, kFont, scale, black(), thickness, cv::LINE_AA);
 }
 
 int textWidth(const std::string& text, double scale = 0.45) {
@@ -68,7 +76,7 @@ cv::Mat colourPanel(const cv::Mat& error, double scale, const cv::Mat& lut) {
   }
   cv::Mat colour;
   cv::applyColorMap(codes, colour, lut);
-  colour.setTo(kNoData, missing);
+  colour.setTo(noData(), missing);
   return colour;
 }
 
@@ -117,7 +125,7 @@ cv::Mat drawErrorMaps(const std::vector<ErrorMapPanel>& panels, double scale_mm,
   const int margin = 12, top = 56, bar_width = 18, bar_area = 110;
   const int width = margin + static_cast<int>(panels.size()) * (panel_width + margin) + bar_area;
   const int height = top + panel_height + 36;
-  cv::Mat canvas(height, width, CV_8UC3, kWhite);
+  cv::Mat canvas(height, width, CV_8UC3, white());
   putLabel(canvas, title, {margin, 22}, 0.55, 1);
   const cv::Mat lut = divergingLut();
   for (std::size_t i = 0; i < panels.size(); ++i) {
@@ -128,19 +136,19 @@ cv::Mat drawErrorMaps(const std::vector<ErrorMapPanel>& panels, double scale_mm,
                                 scale_mm, lut);
     cv::resize(cells, canvas(cv::Rect(x, top, panel_width, panel_height)),
                {panel_width, panel_height}, 0, 0, cv::INTER_NEAREST);
-    cv::rectangle(canvas, cv::Rect(x - 1, top - 1, panel_width + 2, panel_height + 2), kBlack);
+    cv::rectangle(canvas, cv::Rect(x - 1, top - 1, panel_width + 2, panel_height + 2), black());
     putLabel(canvas, panels[i].title, {x, top - 8});
   }
   // Colour bar: +scale at the top, −scale at the bottom.
   const int bx = width - bar_area + 14;
   for (int y = 0; y < panel_height; ++y) {
-    const cv::Vec3b c = lut.at<cv::Vec3b>(quantised(1.0 - 2.0 * y / (panel_height - 1)));
+    const cv::Vec3b& c = lut.at<cv::Vec3b>(quantised(1.0 - 2.0 * y / (panel_height - 1)));
     cv::line(canvas, {bx, top + y}, {bx + bar_width, top + y}, cv::Scalar(c[0], c[1], c[2]));
   }
-  cv::rectangle(canvas, cv::Rect(bx - 1, top - 1, bar_width + 2, panel_height + 2), kBlack);
+  cv::rectangle(canvas, cv::Rect(bx - 1, top - 1, bar_width + 2, panel_height + 2), black());
   for (int k = -2; k <= 2; ++k) {
     const int y = top + static_cast<int>(std::lround((panel_height - 1) * (2 - k) / 4.0));
-    cv::line(canvas, {bx + bar_width, y}, {bx + bar_width + 5, y}, kBlack);
+    cv::line(canvas, {bx + bar_width, y}, {bx + bar_width + 5, y}, black());
     putLabel(canvas, format(scale_mm * k / 2, "%+.3g"), {bx + bar_width + 8, y + 5}, 0.4);
   }
   putLabel(canvas, "mm", {bx, top + panel_height + 20}, 0.45);
@@ -171,7 +179,7 @@ cv::Mat drawHistograms(const std::vector<HistogramSeries>& series, double range_
   }
   peak = std::max(peak * 1.1, 1e-6);
   const int left = 70, right = 20, top = 40, bottom = 56, plot_w = 560, plot_h = 300;
-  cv::Mat canvas(top + plot_h + bottom, left + plot_w + right, CV_8UC3, kWhite);
+  cv::Mat canvas(top + plot_h + bottom, left + plot_w + right, CV_8UC3, white());
   putLabel(canvas, title, {left, 24}, 0.55);
   const cv::Rect plot(left, top, plot_w, plot_h);
   auto xOf = [&](double mm) {
@@ -184,19 +192,19 @@ cv::Mat drawHistograms(const std::vector<HistogramSeries>& series, double range_
   for (int k = -4; k <= 4; ++k) {
     const double mm = range_mm * k / 4;
     const int x = xOf(mm);
-    cv::line(canvas, {x, top + plot_h}, {x, top + plot_h + 5}, kBlack);
+    cv::line(canvas, {x, top + plot_h}, {x, top + plot_h + 5}, black());
     const std::string t = format(mm, "%.3g");
     putLabel(canvas, t, {x - textWidth(t, 0.4) / 2, top + plot_h + 20}, 0.4);
   }
   for (int k = 0; k <= 4; ++k) {
     const double f = peak / 1.1 * k / 4;
     const int y = yOf(f);
-    cv::line(canvas, {left - 5, y}, {left, y}, kBlack);
+    cv::line(canvas, {left - 5, y}, {left, y}, black());
     const std::string t = format(100 * f, "%.1f%%");
     putLabel(canvas, t, {left - 8 - textWidth(t, 0.4), y + 5}, 0.4);
   }
   putLabel(canvas, x_label, {left + plot_w / 2 - textWidth(x_label) / 2, top + plot_h + 44});
-  cv::Mat vertical(20, 160, CV_8UC3, kWhite);
+  cv::Mat vertical(20, 160, CV_8UC3, white());
   putLabel(vertical, "points per bin", {4, 15});
   cv::rotate(vertical, vertical, cv::ROTATE_90_COUNTERCLOCKWISE);
   vertical.copyTo(canvas(cv::Rect(2, top + plot_h / 2 - 80, 20, 160)));
@@ -221,13 +229,13 @@ cv::Mat drawHistograms(const std::vector<HistogramSeries>& series, double range_
   const int lx = left + plot_w - label_width - 45;
   cv::rectangle(
       canvas, cv::Rect(lx - 6, top + 4, label_width + 45, 20 * static_cast<int>(series.size()) + 6),
-      kWhite, cv::FILLED);
+      white(), cv::FILLED);
   for (std::size_t s = 0; s < series.size(); ++s) {
     const int ly = top + 18 + 20 * static_cast<int>(s);
     cv::line(canvas, {lx, ly - 4}, {lx + 25, ly - 4}, series[s].colour, 2);
     putLabel(canvas, series[s].label, {lx + 32, ly});
   }
-  cv::rectangle(canvas, plot, kBlack);
+  cv::rectangle(canvas, plot, black());
   return canvas;
 }
 

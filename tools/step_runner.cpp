@@ -10,8 +10,7 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
-
-extern char** environ;
+#include <system_error>
 
 namespace cylscan::tools {
 namespace {
@@ -34,7 +33,7 @@ class Pipe {
   int writeEnd() const { return fds_[1]; }
   void closeRead() { closeFd(fds_[0]); }
   void closeWrite() { closeFd(fds_[1]); }
-  static std::string errnoText() { return std::strerror(errno); }
+  static std::string errnoText() { return std::generic_category().message(errno); }
 
  private:
   static void closeFd(int& fd) {
@@ -77,6 +76,7 @@ nlohmann::json StepRunner::run(const std::string& step, const std::vector<std::s
   argv_text.insert(argv_text.end(), args.begin(), args.end());
   argv_text.push_back("--json");
   std::vector<char*> argv;
+  argv.reserve(argv_text.size() + 1);
   for (auto& a : argv_text)
     argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -93,7 +93,7 @@ nlohmann::json StepRunner::run(const std::string& step, const std::vector<std::s
   posix_spawn_file_actions_destroy(&actions);
   if (spawned != 0) {
     throw std::runtime_error(step + ": cannot start " + executable_.string() + ": " +
-                             std::strerror(spawned));
+                             std::generic_category().message(spawned));
   }
   out.closeWrite();
   std::string output;

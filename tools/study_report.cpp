@@ -33,6 +33,7 @@ std::vector<double> values(const std::array<double, N>& a) {
 template <typename Rows, typename Field>
 std::vector<double> field(const Rows& rows, Field f) {
   std::vector<double> out;
+  out.reserve(rows.size());
   for (const auto& r : rows)
     out.push_back(r.*f);
   return out;

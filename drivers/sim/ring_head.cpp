@@ -103,12 +103,17 @@ HeadConfig headForCamera(const HeadConfig& head, std::string_view camera, std::s
   main.name = "main";
   main.position_mm = {0, 0, 0};
   main.rotation_deg = {0, 0, 0};
-  CameraParams second = beside;
-  out.cameras = {main, second};
+  out.cameras = {main, beside};
+  // The frame faults follow their camera: to the new main, stay on aux, or,
+  // when they were for a camera this head does not have, are gone (the stage's
+  // faults are the head's and stay).
   if (head.faults.camera == camera) {
     out.faults.camera = "main";
   } else if (head.faults.camera != aux) {
     out.faults.camera = "main";
+    out.faults.drop_frames = 0;
+    out.faults.delay_first_frame_ms = 0;
+    out.faults.corrupt_frames = 0;
   }
   validate(out);
   return out;

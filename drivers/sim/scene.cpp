@@ -255,8 +255,8 @@ Scene loadScene(const std::filesystem::path& file) {
   r.require(!scene.name.empty(), "name", "must not be empty");
   scene.ambient = r.nonNegative("ambient", scene.ambient);
   const toml::array* objects = r.array("object");
-  r.require(objects != nullptr && !objects->empty(), "object",
-            "at least one [[object]] is required");
+  if (objects == nullptr || objects->empty())
+    r.fail("object", "at least one [[object]] is required");
   int index = 0;
   for (const toml::node& n : *objects) {
     const toml::table* t = n.as_table();

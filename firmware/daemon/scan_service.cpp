@@ -807,8 +807,10 @@ json ScanService::installHead(std::string_view text) {
         std::any_of(profile_.cameras.begin(), profile_.cameras.end(),
                     [&](const drivers::CameraProfile& c) { return c.name == camera; });
     if (!known) {
-      throw ServiceError(422, "head.json: \"cameras." + camera + "\": the board " + board_name_ +
-                                  " has no camera '" + camera + "'");
+      std::string message = "head.json: \"cameras." + camera;
+      message += "\": the board " + board_name_;
+      message += " has no camera '" + camera + "'";
+      throw ServiceError(422, message);
     }
   }
   const std::string canonical = formats::headExtrinsicsJson(head);

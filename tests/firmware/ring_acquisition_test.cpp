@@ -404,10 +404,10 @@ TEST(RingAcquisition, ALostFrameOfASwappedCameraIsSweptAgain) {
       if (p.frames_done == 5) again.head().dropFrames(swapped, 2);
     });
     ADD_FAILURE() << "the scan should fail";
-  } catch (const ScanError& e) {
-    EXPECT_NE(std::string(e.what()).find("camera '" + swapped + "': no frame 5 of the low set"),
+  } catch (const ScanError& error) {
+    EXPECT_NE(std::string(error.what()).find("camera '" + swapped + "': no frame 5 of the low set"),
               std::string::npos)
-        << e.what();
+        << error.what();
   }
   EXPECT_FALSE(again.head().lightOn());
   EXPECT_FALSE(again.head().stage().enabled());

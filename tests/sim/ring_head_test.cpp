@@ -228,6 +228,29 @@ TEST(RingHead, ReexpressionKeepsAuxBesideTheCamera) {
   }
 }
 
+TEST(RingHead, ReexpressionKeepsFrameFaultsOnTheirCamera) {
+  HeadConfig full = ringHead();
+  full.faults.drop_frames = 2;
+  full.faults.corrupt_frames = 1;
+  full.faults.lose_steps_after = 100;
+  full.faults.lose_steps = 3;
+  full.faults.camera = "cam90";
+  const HeadConfig cam90 = headForCamera(full, "cam90");
+  EXPECT_EQ(cam90.faults.camera, "main");  // cam90 is this head's main
+  EXPECT_EQ(cam90.faults.drop_frames, 2);
+  EXPECT_EQ(cam90.faults.corrupt_frames, 1);
+  full.faults.camera = "aux";
+  EXPECT_EQ(headForCamera(full, "cam90").faults, full.faults);
+  // The old main is not in cam180's head: its frame faults must not move to cam180.
+  full.faults.camera = "main";
+  const HeadConfig cam180 = headForCamera(full, "cam180");
+  EXPECT_EQ(cam180.faults.camera, "main");
+  EXPECT_EQ(cam180.faults.drop_frames, 0);
+  EXPECT_EQ(cam180.faults.corrupt_frames, 0);
+  EXPECT_EQ(cam180.faults.lose_steps, 3);  // the stage's faults stay
+  EXPECT_EQ(cam180.faults.lose_steps_after, 100);
+}
+
 TEST(RingHead, TransformedScenesMoveEveryShape) {
   const RigidMotion m = aboutProjectorAxis(90).after({Mat3::Identity(), Vec3(1, 2, 3)});
   Scene s;
