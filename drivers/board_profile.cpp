@@ -269,14 +269,6 @@ std::string_view toString(CameraBackendKind backend) {
   return "?";
 }
 
-bool isCameraName(std::string_view name) {
-  if (name.empty() || name.size() > 32) return false;
-  const auto lowerOrDigit = [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9'); };
-  if (!lowerOrDigit(name.front())) return false;
-  return std::all_of(name.begin(), name.end(),
-                     [&](char c) { return lowerOrDigit(c) || c == '_' || c == '-'; });
-}
-
 std::string_view toString(PlanKind plan) {
   return plan == PlanKind::Ring ? "ring" : "sets";
 }

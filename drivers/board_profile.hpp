@@ -15,6 +15,7 @@
 #include <toml++/toml.h>
 
 #include "drivers/camera.hpp"
+#include "drivers/camera_name.hpp"
 #include "drivers/gpio.hpp"
 #include "drivers/sim/head_config.hpp"
 #include "drivers/stage_config.hpp"
@@ -105,13 +106,6 @@ std::string_view toString(CameraBackendKind backend);
 std::string_view toString(TriggerMode trigger);
 std::string_view toString(ScanMode mode);
 std::string_view toString(PlanKind plan);
-
-// A camera's name: 1 to 32 of [a-z0-9_-], starting with a letter or a digit.
-// It names the camera's files (calibration/<name>.qcal, clouds/<name>.ply) and
-// its URLs, so a board may only use names that are safe in both.
-bool isCameraName(std::string_view name);
-inline constexpr std::string_view kCameraNameRule =
-    "1 to 32 of a-z 0-9 _ -, starting with a letter or a digit";
 
 // Reads `dir`/board.toml (or the file itself when given one). Every fault
 // throws sim::ConfigError (a std::invalid_argument) naming the file, the line

@@ -8,7 +8,7 @@
 #include <cerrno>
 #include <system_error>
 
-#include "drivers/board_profile.hpp"
+#include "drivers/camera_name.hpp"
 #include "firmware/daemon/head_service.hpp"
 #include "firmware/daemon/log.hpp"
 #include "formats/atomic_file.hpp"

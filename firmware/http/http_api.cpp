@@ -24,7 +24,7 @@
 #include <utility>
 #include <vector>
 
-#include "drivers/board_profile.hpp"
+#include "drivers/camera_name.hpp"
 #include "firmware/http/auth.hpp"
 #include "firmware/http/files.hpp"
 #include "firmware/http/http_metrics.hpp"

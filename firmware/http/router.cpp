@@ -4,7 +4,7 @@
 #include <array>
 #include <utility>
 
-#include "drivers/board_profile.hpp"
+#include "drivers/camera_name.hpp"
 #include "firmware/daemon/head_service.hpp"
 
 namespace cylscan::firmware::http {
