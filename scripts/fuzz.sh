@@ -7,7 +7,8 @@
 # its input is kept in build/fuzz/artifacts/NAME/ and the log's last lines
 # are printed. Prints one line per target and "N passed, N failed"; exits
 # non-zero if any failed. JOBS=N sets the build's parallelism (default nproc),
-# FUZZ_BUILD_DIR the build directory.
+# FUZZ_PARALLEL how many targets run at once (default JOBS), FUZZ_BUILD_DIR
+# the build directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root="$PWD"
@@ -50,36 +51,58 @@ built=$(date +%s)
 
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
+# One target: its result line in $scratch/$t.result, its status in $scratch/$t.rc.
+run_target() {
+  local t=$1
+  local exe="$build/fuzz/fuzz_$t"
+  local seeds="$root/fuzz/corpus/$t"
+  local work="$scratch/$t"
+  local artifacts="$build/artifacts/$t"
+  mkdir -p "$work/corpus" "$work/tmp" "$artifacts"
+  cp "$seeds"/* "$work/corpus/"
+  local args=(-max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1
+              -artifact_prefix="$artifacts/")
+  if [ -n "${dict[$t]:-}" ]; then args+=(-dict="$root/fuzz/${dict[$t]}"); fi
+  local t0 t1 rc=0
+  t0=$(date +%s)
+  TMPDIR="$work/tmp" "$exe" "${args[@]}" "$work/corpus" >"$work/log" 2>&1 || rc=$?
+  t1=$(date +%s)
+  local runs stats corpus
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/log" | tail -1 || true)
+  stats=$(grep -E '^#[0-9]+' "$work/log" | grep -o 'cov: [0-9]* ft: [0-9]* corp: [0-9]*' |
+    tail -1 || true)
+  corpus=$(find "$work/corpus" -type f | wc -l)
+  if [ "$rc" -eq 0 ]; then
+    printf 'fuzz_%-20s passed  %6ss  %10s runs  %s  (corpus %s files)\n' \
+      "$t" "$((t1 - t0))" "${runs:-?}" "${stats:-cov: ?}" "$corpus" >"$scratch/$t.result"
+  else
+    {
+      printf 'fuzz_%-20s FAILED  %6ss  exit %s; input kept in %s\n' "$t" "$((t1 - t0))" "$rc" \
+        "$artifacts/"
+      grep -E 'ERROR|SUMMARY|runtime error|Test unit written|terminate|what\(\)' "$work/log" |
+        head -12 | sed 's/^/    /' || true
+    } >"$scratch/$t.result"
+    cp "$work/log" "$artifacts/last.log"
+  fi
+  echo "$rc" >"$scratch/$t.rc"
+}
+
+# The targets run FUZZ_PARALLEL at a time (default: the build's jobs), each
+# single-threaded, so a 2-core machine runs two at once.
+parallel="${FUZZ_PARALLEL:-$jobs}"
+for t in "${targets[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$parallel" ]; do wait -n || true; done
+  run_target "$t" &
+done
+wait
 passed=0
 failed=0
 for t in "${targets[@]}"; do
-  exe="$build/fuzz/fuzz_$t"
-  seeds="$root/fuzz/corpus/$t"
-  work="$scratch/$t"
-  artifacts="$build/artifacts/$t"
-  mkdir -p "$work/corpus" "$work/tmp" "$artifacts"
-  cp "$seeds"/* "$work/corpus/"
-  args=(-max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1
-        -artifact_prefix="$artifacts/")
-  if [ -n "${dict[$t]:-}" ]; then args+=(-dict="$root/fuzz/${dict[$t]}"); fi
-  t0=$(date +%s)
-  rc=0
-  TMPDIR="$work/tmp" "$exe" "${args[@]}" "$work/corpus" >"$work/log" 2>&1 || rc=$?
-  t1=$(date +%s)
-  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/log" | tail -1)
-  stats=$(grep -E '^#[0-9]+' "$work/log" | grep -o 'cov: [0-9]* ft: [0-9]* corp: [0-9]*' | tail -1)
-  corpus=$(find "$work/corpus" -type f | wc -l)
-  if [ "$rc" -eq 0 ]; then
+  cat "$scratch/$t.result" 2>/dev/null || echo "fuzz_$t: no result (the runner itself failed)"
+  if [ "$(cat "$scratch/$t.rc" 2>/dev/null || echo 1)" = 0 ]; then
     passed=$((passed + 1))
-    printf 'fuzz_%-20s passed  %6ss  %10s runs  %s  (corpus %s files)\n' \
-      "$t" "$((t1 - t0))" "${runs:-?}" "${stats:-cov: ?}" "$corpus"
   else
     failed=$((failed + 1))
-    printf 'fuzz_%-20s FAILED  %6ss  exit %s; input kept in %s\n' "$t" "$((t1 - t0))" "$rc" \
-      "$artifacts/"
-    grep -E 'ERROR|SUMMARY|runtime error|Test unit written|terminate|what\(\)' "$work/log" |
-      head -12 | sed 's/^/    /'
-    cp "$work/log" "$artifacts/last.log"
   fi
 done
 end=$(date +%s)
