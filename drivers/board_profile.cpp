@@ -1,6 +1,5 @@
 #include "drivers/board_profile.hpp"
 
-#include <algorithm>
 #include <array>
 #include <cmath>
 #include <set>

@@ -159,8 +159,9 @@ TEST(ShippedBoardProfiles, EachLoadsAndDeclaresItsLinesAndCamera) {
     EXPECT_EQ(main.config.trigger, want.trigger);
     EXPECT_EQ(main.device, want.device);
     for (const CameraProfile& c : p.cameras) {
-      if (c.config.trigger == TriggerMode::GpioPulse)
+      if (c.config.trigger == TriggerMode::GpioPulse) {
         EXPECT_EQ(p.gpio.triggers.count(c.trigger_line), 1U) << c.name << ": " << c.trigger_line;
+      }
     }
     // A stage the step executor can drive: whole steps per degree well above one.
     EXPECT_GT(p.stage.stepsPerDeg(), 10.0);
