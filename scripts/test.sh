@@ -74,8 +74,8 @@ if [ "${TEST_QUICK:-0}" != 1 ]; then
   stage "cppcheck" bash scripts/lint.sh cppcheck
   # Expected times: measured on the 2-core development machine (README), with margin.
   budgeted_stage "clang-tidy" 1200 bash scripts/lint.sh clang-tidy
-  budgeted_stage "asan" 2200 bash scripts/sanitize.sh asan
-  budgeted_stage "tsan" 1200 bash scripts/sanitize.sh tsan
+  budgeted_stage "asan" 1600 bash scripts/sanitize.sh asan
+  budgeted_stage "tsan" 900 bash scripts/sanitize.sh tsan
 fi
 printf '\n=== test.sh: %d s in all' $((SECONDS - t0))
 [ "$failed" -eq 0 ] || printf '; failed: %s' "${failures[*]}"
