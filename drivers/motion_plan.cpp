@@ -57,6 +57,8 @@ void checkSpeed(const StageConfig& config, double speed_deg_s, const char* what)
 void fill(StepSchedule& s, const StageConfig& config, const Profile& p, std::int64_t steps,
           std::int64_t offset_ns) {
   s.step_high_ns = usToNs(config.step_pulse_us);
+  s.start_rate_steps_s = config.start_speed_deg_s * config.stepsPerDeg();
+  s.accel_steps_s2 = config.accel_deg_s2 * config.stepsPerDeg();
   s.step_ns.resize(static_cast<std::size_t>(steps));
   for (std::int64_t i = 0; i < steps; ++i) {
     s.step_ns[static_cast<std::size_t>(i)] = offset_ns + toNs(p.time(static_cast<double>(i)));
@@ -170,6 +172,8 @@ StepSchedule planStop(const StageConfig& config, bool forward, double speed_step
   s.step_high_ns = usToNs(config.step_pulse_us);
   const double spd = config.stepsPerDeg();
   const double v0 = config.start_speed_deg_s * spd, a = config.accel_deg_s2 * spd;
+  s.start_rate_steps_s = v0;
+  s.accel_steps_s2 = a;
   const double v = speed_steps_s;
   if (!(v > v0) || !std::isfinite(v)) return s;
   const double ramp = (v * v - v0 * v0) / (2 * a);

@@ -32,6 +32,12 @@ struct StepSchedule {
   // strictly increasing, the first one at least the dir setup time.
   std::vector<std::int64_t> step_ns;
   std::vector<TriggerPulse> triggers;  // in time order
+  // The ramp the executor may re-accelerate with after a late edge (see
+  // StepExecutor): the move's start/stop rate and acceleration, in steps/s
+  // and steps/s². 0: the schedule came without them (the executor then only
+  // delays the rest of the schedule, never bursts).
+  double start_rate_steps_s = 0;
+  double accel_steps_s2 = 0;
 
   std::int64_t steps() const { return static_cast<std::int64_t>(step_ns.size()); }
   int direction() const { return forward ? 1 : -1; }

@@ -163,16 +163,19 @@ RotationStage::Run RotationStage::execute(const StepSchedule& schedule, bool wat
   const auto k = std::upper_bound(times.begin(), times.end(), *watch.edge) - times.begin();
   run.edge_position = before + d * static_cast<std::int64_t>(k);
   run.edge_time = *watch.edge;
-  // Stopped at speed: ramp down instead of stopping dead.
+  // Stopped at speed: ramp down instead of stopping dead, from the last
+  // step as it went out (after a late edge the motor may be slower than
+  // planned, never faster).
   const std::int64_t n = run.result.steps;
   if (run.result.stopped && n >= 2) {
     const auto last = static_cast<std::size_t>(n - 1);
-    const double speed =
+    const double planned =
         1e9 / static_cast<double>(schedule.step_ns[last] - schedule.step_ns[last - 1]);
+    const auto actual_gap = static_cast<double>((times[last] - times[last - 1]).count());
+    const double speed = actual_gap > 0 ? std::min(planned, 1e9 / actual_gap) : planned;
     const StepSchedule ramp = planStop(config_, schedule.forward, speed);
     Watch fault_only(nullptr, lines_.fault.get());
-    const ExecutionResult r =
-        executor_.run(ramp, &fault_only, run.result.origin + Nanoseconds{schedule.step_ns[last]});
+    const ExecutionResult r = executor_.run(ramp, &fault_only, times[last]);
     position_ += d * r.steps;
     noteLastStep(r.steps);
     if (r.aborted) fail("move aborted while ramping down");

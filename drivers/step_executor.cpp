@@ -1,5 +1,7 @@
 #include "drivers/step_executor.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -10,18 +12,25 @@ namespace {
 using Nanoseconds = std::chrono::nanoseconds;
 constexpr std::int64_t kNever = std::numeric_limits<std::int64_t>::max();
 
-// One pulse train (steps or triggers): the next edge and whether it rises.
+// One pulse train (steps or triggers): how many went out, and the rising
+// edge of the one that is high.
 struct Train {
   std::int64_t index = 0;  // pulses emitted
   std::int64_t count = 0;
   bool high = false;
   std::int64_t high_ns = 0;
-  template <typename TimeOf>
-  std::int64_t next(TimeOf time_of) const {
-    if (high) return time_of(index) + high_ns;
-    return index < count ? time_of(index) : kNever;
-  }
+  std::int64_t rose_at = 0;  // absolute time of the high pulse's rising edge
 };
+
+// The shortest interval after a step at `speed` (steps/s; at or below the
+// start rate: from rest) that keeps the speed change within `accel`, with
+// the speed of a step taken as 1 / its interval: the v solving
+// v - base = accel / v.
+std::int64_t shortestIntervalNs(double speed, double start_rate, double accel) {
+  const double base = std::max(speed, start_rate);
+  const double v = (base + std::sqrt(base * base + 4 * accel)) / 2;
+  return static_cast<std::int64_t>(std::ceil(1e9 / v));
+}
 
 }  // namespace
 
@@ -37,6 +46,8 @@ void StepExecutor::reserve(std::int64_t steps) {
 void StepExecutor::resetJitter() noexcept {
   step_jitter_.reset();
   trigger_jitter_.reset();
+  reramps_ = 0;
+  slip_ = Nanoseconds{0};
 }
 
 ExecutionResult StepExecutor::run(const StepSchedule& schedule, StopCondition* stop,
@@ -65,18 +76,51 @@ ExecutionResult StepExecutor::execute(const StepSchedule& schedule, OutputLine* 
   const TriggerPulse* triggers = schedule.triggers.data();
   Train s{0, schedule.steps(), false, schedule.step_high_ns};
   Train t{0, static_cast<std::int64_t>(schedule.triggers.size()), false, schedule.trigger_high_ns};
-  auto step_time = [steps](std::int64_t i) { return steps[i]; };
-  auto trigger_time = [triggers](std::int64_t i) { return triggers[i].time_ns; };
+  const bool can_ramp = schedule.accel_steps_s2 > 0;
+  std::int64_t slip = 0;       // the delay of the rest of the schedule
+  bool recovering = false;     // re-ramping after a late edge
+  std::int64_t last_rise = 0;  // the last step's rising edge (absolute)
+  double last_speed = 0;       // steps/s of the last step (1 / its interval)
+
+  // The next step's rising edge: its planned time plus the slip, or later
+  // when the edge before it was late (see the header). Decided once per step.
+  std::int64_t decided_for = -1;
+  std::int64_t decided = 0;
+  auto step_deadline = [&]() {
+    const std::int64_t i = s.index;
+    if (i == decided_for) return decided;
+    decided_for = i;
+    decided = t0 + slip + steps[i];
+    if (i == 0) return decided;
+    const std::int64_t planned_gap = steps[i] - steps[i - 1];
+    if (!recovering && 2 * (decided - last_rise) >= planned_gap) return decided;
+    const std::int64_t earliest =
+        last_rise + (can_ramp ? shortestIntervalNs(last_speed, schedule.start_rate_steps_s,
+                                                   schedule.accel_steps_s2)
+                              : planned_gap);
+    if (earliest <= decided) {
+      recovering = false;
+      return decided;
+    }
+    if (!recovering) ++result.reramps;
+    recovering = can_ramp;
+    slip += earliest - decided;
+    decided = earliest;
+    return decided;
+  };
 
   dir_.set(schedule.forward);
   for (;;) {
-    const std::int64_t next_step = s.next(step_time);
-    const std::int64_t next_trigger = t.next(trigger_time);
+    const std::int64_t next_step =
+        s.high ? s.rose_at + s.high_ns : (s.index < s.count ? step_deadline() : kNever);
+    const std::int64_t next_trigger =
+        t.high ? t.rose_at + t.high_ns
+               : (t.index < t.count ? t0 + slip + triggers[t.index].time_ns : kNever);
     if (next_step == kNever && next_trigger == kNever) break;
     // Equal times: the step first, so a trigger follows the step it counts.
     const bool is_step = next_step <= next_trigger;
     Train& train = is_step ? s : t;
-    const std::int64_t deadline = t0 + (is_step ? next_step : next_trigger);
+    const std::int64_t deadline = is_step ? next_step : next_trigger;
     if (!train.high && abort_.load(std::memory_order_acquire)) {
       result.aborted = true;
       break;
@@ -87,8 +131,14 @@ ExecutionResult StepExecutor::execute(const StepSchedule& schedule, OutputLine* 
       line.set(true);
       const Nanoseconds now = clock_.now();
       (is_step ? step_jitter_ : trigger_jitter_).record(now - Nanoseconds{deadline});
-      if (is_step) step_times_[static_cast<std::size_t>(s.index)] = now;
       train.high = true;
+      train.rose_at = now.count();
+      if (is_step) {
+        step_times_[static_cast<std::size_t>(s.index)] = now;
+        const std::int64_t interval = now.count() - last_rise;
+        last_speed = s.index > 0 && interval > 0 ? 1e9 / static_cast<double>(interval) : 0.0;
+        last_rise = now.count();
+      }
       continue;
     }
     line.set(false);
@@ -109,6 +159,9 @@ ExecutionResult StepExecutor::execute(const StepSchedule& schedule, OutputLine* 
   }
   result.steps = s.index;
   result.triggers = t.index;
+  result.slip = Nanoseconds{slip};
+  reramps_ += result.reramps;
+  slip_ += result.slip;
   last_steps_ = s.index;
   return result;
 }

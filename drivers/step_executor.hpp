@@ -3,6 +3,17 @@
 // of edge times is sized before it starts), can be aborted from any thread,
 // and records the lateness of every step and trigger edge.
 //
+// Late edges. Deadlines are absolute, so a rising edge a little late (by
+// less than half its planned interval) changes nothing after it: the next
+// edges keep their times and a long schedule does not drift. A later wake-up
+// (the thread was preempted, the machine stalled) would otherwise emit the
+// overdue steps back to back, a burst the motor cannot follow at speed. So
+// the rest of the schedule is delayed instead (the run's `slip`): the steps
+// after such an edge re-accelerate from the speed the motor actually has,
+// with the schedule's start rate and acceleration, until they are back on the
+// delayed plan (a "re-ramp"); triggers move with the steps. A pulse's falling
+// edge follows its actual rising edge, so a late pulse is never short.
+//
 // It runs on the calling thread: the caller picks it (its own thread for a
 // simple move, a RealtimeThread for a scan).
 #pragma once
@@ -35,6 +46,10 @@ struct ExecutionResult {
   bool aborted = false;                // abort() stopped it
   bool stopped = false;                // the stop condition stopped it
   std::chrono::nanoseconds origin{0};  // the schedule's zero (when dir was set)
+  // How much later than planned the rest of the schedule ran after late
+  // edges, and how many re-ramps that took (0 and 0 when nothing was late).
+  std::chrono::nanoseconds slip{0};
+  std::int64_t reramps = 0;
   bool complete(const StepSchedule& s) const {
     return steps == s.steps() && triggers == static_cast<std::int64_t>(s.triggers.size());
   }
@@ -70,9 +85,12 @@ class StepExecutor {
     return {step_times_.data(), static_cast<std::size_t>(last_steps_)};
   }
 
-  // Lateness of the step and trigger rising edges over all runs.
+  // Lateness of the step and trigger rising edges over all runs (against the
+  // deadline each was aimed at), and the re-ramps after late edges.
   const JitterStats& stepJitter() const { return step_jitter_; }
   const JitterStats& triggerJitter() const { return trigger_jitter_; }
+  std::int64_t reramps() const noexcept { return reramps_; }
+  std::chrono::nanoseconds slip() const noexcept { return slip_; }  // summed over runs
   void resetJitter() noexcept;
 
  private:
@@ -88,6 +106,8 @@ class StepExecutor {
   std::int64_t last_steps_ = 0;
   JitterStats step_jitter_;
   JitterStats trigger_jitter_;
+  std::int64_t reramps_ = 0;
+  std::chrono::nanoseconds slip_{0};
 };
 
 }  // namespace cylscan::drivers

@@ -398,6 +398,8 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
   Shared shared(plan.frames());
   drivers::Clock& clock = board_.clock();
   const nanoseconds started = clock.now();
+  const std::int64_t reramps_before = stage_->executor().reramps();
+  const nanoseconds slip_before = stage_->executor().slip();
   report.homed = !stage_->homed();
   {
     const SafeState safe(*stage_, *light_);
@@ -431,6 +433,15 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
   report.step_check = shared.step_check;
   report.step_jitter = stage_->executor().stepJitter().snapshot();
   report.trigger_jitter = stage_->executor().triggerJitter().snapshot();
+  report.step_reramps = stage_->executor().reramps() - reramps_before;
+  report.step_slip = stage_->executor().slip() - slip_before;
+  if (report.step_reramps > 0) {
+    report.warnings.push_back("the step executor woke late " + std::to_string(report.step_reramps) +
+                              " time(s) at speed and re-ramped the stage instead of bursting the "
+                              "overdue steps (the moves ran " +
+                              std::to_string(static_cast<double>(report.step_slip.count()) / 1e6) +
+                              " ms late in all)");
+  }
   if (abort_.load(std::memory_order_acquire)) throw ScanError("scan aborted");
   if (shared.stopping()) {
     const std::lock_guard lock(shared.error_mutex);

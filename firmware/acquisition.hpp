@@ -64,6 +64,10 @@ struct ScanReport {
   bool realtime = false;  // the motion thread got SCHED_FIFO
   std::vector<std::string> warnings;
   drivers::JitterStats::Snapshot step_jitter, trigger_jitter;
+  // Late wake-ups of the step executor that delayed the rest of a move
+  // (re-ramps), and by how much in all (drivers/step_executor.hpp).
+  std::int64_t step_reramps = 0;
+  std::chrono::nanoseconds step_slip{0};
 };
 
 // What the firmware last drove on the head's outputs (the stage driver's

@@ -157,6 +157,7 @@ void runScan(const ScanRequest& request) {
                   {"realtime", report.realtime},
                   {"warnings", report.warnings},
                   {"step_jitter", jitterJson(report.step_jitter)},
+                  {"step_reramps", report.step_reramps},
                   {"trigger_jitter", jitterJson(report.trigger_jitter)},
                   {"stage_deg", {{"high", report.high_deg}, {"low", report.low_deg}}}};
   summary["plan"] = drivers::toString(options.plan);

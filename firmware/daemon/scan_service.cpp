@@ -492,6 +492,7 @@ void ScanService::runJob(Job& job) {
     result["board_seconds"] = static_cast<double>(report.duration.count()) / 1e9;
     result["warnings"] = report.warnings;
     result["step_jitter"] = jitterJson(report.step_jitter);
+    result["step_reramps"] = report.step_reramps;
     result["trigger_jitter"] = jitterJson(report.trigger_jitter);
     if (bundle) result["bundle"] = "bundle";
 
