@@ -436,13 +436,22 @@ TEST_F(HttpApiTest, OneCalibrationUploadAtATime) {
   start();
   RawSocket first("127.0.0.1", api->port());
   ASSERT_TRUE(first.ok());
+  // The head alone, asking to continue: the server's "100 Continue" says it
+  // has taken the upload (the slot is claimed when the head is accepted), so
+  // the second upload cannot overtake it. (Sent with the head and no wait, a
+  // loaded machine could serve the second first: the first then got the 409.)
   first.send("PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\n" + kAuth +
-             "\r\nContent-Length: 10\r\n\r\n12345");
+             "\r\nContent-Length: 10\r\nExpect: 100-continue\r\n\r\n");
+  const std::string interim = first.readHead();
+  ASSERT_EQ(statusOf(interim), 100) << interim;
+  first.send("12345");
   // The first is being read: a second one is refused (its body never read).
-  ASSERT_TRUE(test_support::eventually(
-      [&] { return send("PUT", "/api/v1/calibration", "abc").status == 409; }));
+  EXPECT_EQ(send("PUT", "/api/v1/calibration", "abc").status, 409);
   first.send("67890");
-  EXPECT_EQ(statusOf(first.readHead()), 200);
+  const std::string received = first.readUntil([&](const std::string& s) {
+    return s.size() > interim.size() && s.find("\r\n\r\n", interim.size()) != std::string::npos;
+  });
+  EXPECT_EQ(statusOf(received.substr(interim.size())), 200) << received;
   EXPECT_EQ(service.last_bytes, "1234567890");
   // Done: the next one is taken.
   EXPECT_EQ(send("PUT", "/api/v1/calibration", "abc").status, 200);
