@@ -13,14 +13,15 @@
 #   7. ThreadSanitizer over the tests that run threads (scripts/sanitize.sh tsan);
 # CI gives the whole run 90 minutes on a 2-core machine. Stages 5 to 7 are long,
 # so each is started only when its expected time still fits a budget of
-# TEST_BUDGET_S seconds (default 5100: 85 min) and is stopped at the budget's
-# end (that counts as a failure). A stage that does not fit is reported as
-# skipped, by name, on the last line: never as passed.
+# TEST_BUDGET_S seconds (default 5250: 87.5 min) and is stopped at the
+# budget's end (that counts as a failure; with its 30 s to exit it still ends
+# inside CI's 90 minutes). A stage that does not fit is reported as skipped,
+# by name, on the last line: never as passed.
 # TEST_QUICK=1 runs stage 1 only.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 t0=$SECONDS
-budget=${TEST_BUDGET_S:-5100}
+budget=${TEST_BUDGET_S:-5250}
 passed=0
 failed=0
 skipped=0
@@ -72,10 +73,11 @@ if [ "${TEST_QUICK:-0}" != 1 ]; then
   stage "cross-aarch64" env HOST_BUILD_DIR=build/default bash scripts/cross-test.sh aarch64
   stage "fuzz" bash scripts/fuzz.sh 20
   stage "cppcheck" bash scripts/lint.sh cppcheck
-  # Expected times: measured on the 2-core development machine (README), with margin.
+  # Expected times: measured on the 2-core development machine (docs/robustness.md,
+  # "What fits in CI's 90 minutes"): clang-tidy 985 s, ASan 1,361 s, TSan 491 s; with margin.
   budgeted_stage "clang-tidy" 1200 bash scripts/lint.sh clang-tidy
   budgeted_stage "asan" 1600 bash scripts/sanitize.sh asan
-  budgeted_stage "tsan" 900 bash scripts/sanitize.sh tsan
+  budgeted_stage "tsan" 650 bash scripts/sanitize.sh tsan
 fi
 printf '\n=== test.sh: %d s in all' $((SECONDS - t0))
 [ "$failed" -eq 0 ] || printf '; failed: %s' "${failures[*]}"
