@@ -59,6 +59,7 @@ void fill(StepSchedule& s, const StageConfig& config, const Profile& p, std::int
   s.step_high_ns = usToNs(config.step_pulse_us);
   s.start_rate_steps_s = config.start_speed_deg_s * config.stepsPerDeg();
   s.accel_steps_s2 = config.accel_deg_s2 * config.stepsPerDeg();
+  s.lag_tolerance_steps = std::max(0.5, config.microsteps / 2.0);
   s.step_ns.resize(static_cast<std::size_t>(steps));
   for (std::int64_t i = 0; i < steps; ++i) {
     s.step_ns[static_cast<std::size_t>(i)] = offset_ns + toNs(p.time(static_cast<double>(i)));
@@ -174,6 +175,7 @@ StepSchedule planStop(const StageConfig& config, bool forward, double speed_step
   const double v0 = config.start_speed_deg_s * spd, a = config.accel_deg_s2 * spd;
   s.start_rate_steps_s = v0;
   s.accel_steps_s2 = a;
+  s.lag_tolerance_steps = std::max(0.5, config.microsteps / 2.0);
   const double v = speed_steps_s;
   if (!(v > v0) || !std::isfinite(v)) return s;
   const double ramp = (v * v - v0 * v0) / (2 * a);

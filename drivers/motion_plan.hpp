@@ -38,6 +38,9 @@ struct StepSchedule {
   // delays the rest of the schedule, never bursts).
   double start_rate_steps_s = 0;
   double accel_steps_s2 = 0;
+  // How late (in steps at the planned rate) an edge may be and still be
+  // caught up on plan: half a full step, the lag a stepper's rotor absorbs.
+  double lag_tolerance_steps = 0.5;
 
   std::int64_t steps() const { return static_cast<std::int64_t>(step_ns.size()); }
   int direction() const { return forward ? 1 : -1; }

@@ -22,16 +22,6 @@ struct Train {
   std::int64_t rose_at = 0;  // absolute time of the high pulse's rising edge
 };
 
-// The shortest interval after a step at `speed` (steps/s; at or below the
-// start rate: from rest) that keeps the speed change within `accel`, with
-// the speed of a step taken as 1 / its interval: the v solving
-// v - base = accel / v.
-std::int64_t shortestIntervalNs(double speed, double start_rate, double accel) {
-  const double base = std::max(speed, start_rate);
-  const double v = (base + std::sqrt(base * base + 4 * accel)) / 2;
-  return static_cast<std::int64_t>(std::ceil(1e9 / v));
-}
-
 }  // namespace
 
 StepExecutor::StepExecutor(Clock& clock, OutputLine& step, OutputLine& dir, OutputLine* trigger)
@@ -77,13 +67,21 @@ ExecutionResult StepExecutor::execute(const StepSchedule& schedule, OutputLine* 
   Train s{0, schedule.steps(), false, schedule.step_high_ns};
   Train t{0, static_cast<std::int64_t>(schedule.triggers.size()), false, schedule.trigger_high_ns};
   const bool can_ramp = schedule.accel_steps_s2 > 0;
-  std::int64_t slip = 0;       // the delay of the rest of the schedule
-  bool recovering = false;     // re-ramping after a late edge
-  std::int64_t last_rise = 0;  // the last step's rising edge (absolute)
-  double last_speed = 0;       // steps/s of the last step (1 / its interval)
+  std::int64_t slip = 0;              // the delay of the rest of the schedule
+  bool recovering = false;            // re-ramping after a late edge
+  double ramp_speed = 0;              // while recovering: the last step's commanded speed, steps/s
+  std::int64_t last_rise = 0;         // the last step's rising edge (absolute)
+  std::int64_t prev_rise = 0;         // the one before it
+  std::int64_t last_aim = 0;          // the deadline the last step was aimed at
+  auto allowed = [&](double speed) {  // the next step's speed, steps/s
+    const double base = std::max(speed, schedule.start_rate_steps_s);
+    return (base + std::sqrt(base * base + 4 * schedule.accel_steps_s2)) / 2;
+  };
 
   // The next step's rising edge: its planned time plus the slip, or later
-  // when the edge before it was late (see the header). Decided once per step.
+  // when an edge before it was late (see the header). Decided once per step.
+  // The re-ramp's speeds are commanded ones: the jitter of the edges that
+  // follow a late one is absorbed as on plan, never fed back into the ramp.
   std::int64_t decided_for = -1;
   std::int64_t decided = 0;
   auto step_deadline = [&]() {
@@ -93,17 +91,32 @@ ExecutionResult StepExecutor::execute(const StepSchedule& schedule, OutputLine* 
     decided = t0 + slip + steps[i];
     if (i == 0) return decided;
     const std::int64_t planned_gap = steps[i] - steps[i - 1];
-    if (!recovering && 2 * (decided - last_rise) >= planned_gap) return decided;
-    const std::int64_t earliest =
-        last_rise + (can_ramp ? shortestIntervalNs(last_speed, schedule.start_rate_steps_s,
-                                                   schedule.accel_steps_s2)
-                              : planned_gap);
+    const std::int64_t intended_gap =
+        recovering ? static_cast<std::int64_t>(std::ceil(1e9 / allowed(ramp_speed))) : planned_gap;
+    const bool late_edge = static_cast<double>(last_rise - last_aim) >
+                           schedule.lag_tolerance_steps * static_cast<double>(intended_gap);
+    std::int64_t earliest = 0;
+    if (late_edge && !can_ramp) {
+      earliest = last_rise + planned_gap;
+      ++result.reramps;
+    } else if (late_edge) {
+      // The motor's speed is the last actual interval's (the pause in it).
+      ramp_speed =
+          i >= 2 && last_rise > prev_rise ? 1e9 / static_cast<double>(last_rise - prev_rise) : 0.0;
+      if (!recovering) ++result.reramps;
+      recovering = true;
+      ramp_speed = allowed(ramp_speed);
+      earliest = last_rise + static_cast<std::int64_t>(std::ceil(1e9 / ramp_speed));
+    } else if (recovering) {
+      ramp_speed = allowed(ramp_speed);
+      earliest = last_aim + static_cast<std::int64_t>(std::ceil(1e9 / ramp_speed));
+    } else {
+      return decided;
+    }
     if (earliest <= decided) {
       recovering = false;
       return decided;
     }
-    if (!recovering) ++result.reramps;
-    recovering = can_ramp;
     slip += earliest - decided;
     decided = earliest;
     return decided;
@@ -135,9 +148,9 @@ ExecutionResult StepExecutor::execute(const StepSchedule& schedule, OutputLine* 
       train.rose_at = now.count();
       if (is_step) {
         step_times_[static_cast<std::size_t>(s.index)] = now;
-        const std::int64_t interval = now.count() - last_rise;
-        last_speed = s.index > 0 && interval > 0 ? 1e9 / static_cast<double>(interval) : 0.0;
+        prev_rise = last_rise;
         last_rise = now.count();
+        last_aim = deadline;
       }
       continue;
     }

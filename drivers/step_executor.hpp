@@ -4,8 +4,10 @@
 // and records the lateness of every step and trigger edge.
 //
 // Late edges. Deadlines are absolute, so a rising edge a little late (by
-// less than half its planned interval) changes nothing after it: the next
-// edges keep their times and a long schedule does not drift. A later wake-up
+// less than the schedule's lag tolerance: half a full step's worth of
+// microsteps at the planned rate, which the rotor absorbs) changes nothing
+// after it: the next edges keep their times and a long schedule does not
+// drift. A later wake-up
 // (the thread was preempted, the machine stalled) would otherwise emit the
 // overdue steps back to back, a burst the motor cannot follow at speed. So
 // the rest of the schedule is delayed instead (the run's `slip`): the steps

@@ -191,7 +191,8 @@ TEST_F(ExecutorTest, ALateWakeUpAtSpeedReRampsInsteadOfBursting) {
 TEST_F(ExecutorTest, ALittleLatenessDoesNotMoveTheRestOfTheSchedule) {
   const StepSchedule plan = planMove(config, 4000);
   const std::chrono::nanoseconds origin = head.clock().now();
-  // 60 µs late at step 2000, under half its 200 µs interval: the step after
+  // 60 µs late at step 2000, within the lag tolerance (half a full step: 5
+  // microsteps, 1 ms at 200 µs a step): the step after
   // it comes on its own deadline (140 µs later), so a long scan never drifts.
   LateClock late(head.clock(), origin + std::chrono::nanoseconds{plan.step_ns[kLateStep]}, 60us);
   StepExecutor ex(late, *step, *dir);
