@@ -91,8 +91,11 @@ ExecutionResult StepExecutor::execute(const StepSchedule& schedule, OutputLine* 
     decided = t0 + slip + steps[i];
     if (i == 0) return decided;
     const std::int64_t planned_gap = steps[i] - steps[i - 1];
+    // While recovering, the ramp's next speed (computed once: this is the
+    // real-time loop) sets the interval this step is meant to follow.
+    const double next_ramp = recovering ? allowed(ramp_speed) : 0.0;
     const std::int64_t intended_gap =
-        recovering ? static_cast<std::int64_t>(std::ceil(1e9 / allowed(ramp_speed))) : planned_gap;
+        recovering ? static_cast<std::int64_t>(std::ceil(1e9 / next_ramp)) : planned_gap;
     const bool late_edge = static_cast<double>(last_rise - last_aim) >
                            schedule.lag_tolerance_steps * static_cast<double>(intended_gap);
     std::int64_t earliest = 0;
@@ -101,15 +104,15 @@ ExecutionResult StepExecutor::execute(const StepSchedule& schedule, OutputLine* 
       ++result.reramps;
     } else if (late_edge) {
       // The motor's speed is the last actual interval's (the pause in it).
-      ramp_speed =
+      const double measured =
           i >= 2 && last_rise > prev_rise ? 1e9 / static_cast<double>(last_rise - prev_rise) : 0.0;
       if (!recovering) ++result.reramps;
       recovering = true;
-      ramp_speed = allowed(ramp_speed);
+      ramp_speed = allowed(measured);
       earliest = last_rise + static_cast<std::int64_t>(std::ceil(1e9 / ramp_speed));
     } else if (recovering) {
-      ramp_speed = allowed(ramp_speed);
-      earliest = last_aim + static_cast<std::int64_t>(std::ceil(1e9 / ramp_speed));
+      ramp_speed = next_ramp;
+      earliest = last_aim + intended_gap;
     } else {
       return decided;
     }
