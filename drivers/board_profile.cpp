@@ -189,6 +189,24 @@ CameraProfile readCamera(TableReader r, const GpioProfile& gpio) {
     r.require(!r.has("trigger_line"), "trigger_line", "only with trigger = \"gpio\"");
     r.require(!r.has("trigger_pulse_us"), "trigger_pulse_us", "only with trigger = \"gpio\"");
   }
+  const bool free_running = c.config.trigger == TriggerMode::FreeRunning;
+  const std::string stream = r.string("stream", free_running ? "continuous" : "per-exposure");
+  if (stream == "per-exposure") {
+    r.require(!free_running, "stream",
+              "a free-running camera streams continuously: leave it out or use \"continuous\"");
+    c.config.stream = FrameStream::PerExposure;
+  } else if (stream == "continuous") {
+    r.require(c.config.trigger != TriggerMode::Software, "stream",
+              "\"continuous\" needs trigger = \"gpio\" or \"free\" (a software trigger "
+              "requests one frame)");
+    c.config.stream = FrameStream::Continuous;
+  } else {
+    r.fail("stream", "unknown stream '" + stream + "' (\"per-exposure\" or \"continuous\")");
+  }
+  c.image_latency_ms = r.nonNegative("image_latency_ms", 0.0);
+  r.require(c.image_latency_ms <= 60000, "image_latency_ms", "must be at most 60000");
+  r.require(!r.has("image_latency_ms") || c.config.stream == FrameStream::Continuous,
+            "image_latency_ms", "only with stream = \"continuous\"");
   r.finish();
   return c;
 }
@@ -282,6 +300,10 @@ std::string_view toString(TriggerMode trigger) {
       return "free";
   }
   return "?";
+}
+
+std::string_view toString(FrameStream stream) {
+  return stream == FrameStream::PerExposure ? "per-exposure" : "continuous";
 }
 
 std::string_view toString(ScanMode mode) {

@@ -42,6 +42,10 @@ struct CameraProfile {
   std::string trigger_line;  // the [gpio] trigger key when config.trigger is GpioPulse
   double trigger_pulse_us = 10.0;
   double frame_rate_hz = 30.0;  // the most frames a second it delivers (continuous mode's pace)
+  // config.stream Continuous: from the trigger (a free-running camera: the
+  // end of the settle) to the first frame stamped late enough to hold the
+  // new exposure; earlier frames are passed over.
+  double image_latency_ms = 0.0;
   // The projector azimuths [lo, hi] (degrees about the projector axis) that its
   // working volume spans: what the ring planner needs ([scan] plan = "ring").
   std::optional<std::array<double, 2>> azimuth_deg;
@@ -104,6 +108,7 @@ struct BoardProfile {
 
 std::string_view toString(CameraBackendKind backend);
 std::string_view toString(TriggerMode trigger);
+std::string_view toString(FrameStream stream);
 std::string_view toString(ScanMode mode);
 std::string_view toString(PlanKind plan);
 

@@ -19,19 +19,35 @@ enum class TriggerMode {
   FreeRunning  // the camera streams; frames are matched by timestamp
 };
 
+// How frames reach the host.
+//   PerExposure: one frame per exposure, numbered in order: a gap in the
+//     sequence is a lost frame.
+//   Continuous: the camera's link runs at its own frame rate and every frame
+//     holds the latest finished exposure (a camera behind an HDMI or analogue
+//     capture bridge, a UVC camera that repeats its last triggered image, and
+//     every free-running camera). A gap is a frame nobody read, and the frame
+//     of an exposure is the first one stamped at least the camera's image
+//     latency after its trigger.
+enum class FrameStream { PerExposure, Continuous };
+
 struct CameraConfig {
-  int width = 0;          // 0: the backend's default
+  int width = 0;  // 0: the backend's default
   int height = 0;
-  int bit_depth = 8;      // 8, 10, 12 or 16 significant bits
-  double exposure_us = 0; // 0: the backend's default
+  int bit_depth = 8;       // 8, 10, 12 or 16 significant bits
+  double exposure_us = 0;  // 0: the backend's default
   double gain = 1.0;
   TriggerMode trigger = TriggerMode::GpioPulse;
+  FrameStream stream = FrameStream::PerExposure;  // Continuous whenever trigger is FreeRunning
 };
 
 struct Frame {
-  cv::Mat image;                       // CV_8UC1 or CV_16UC1 (counts unscaled)
-  std::uint64_t sequence = 0;          // increments by one per exposure; a gap is a lost frame
-  std::chrono::nanoseconds timestamp{0};  // start of exposure, CLOCK_MONOTONIC (or virtual)
+  cv::Mat image;  // CV_8UC1 or CV_16UC1 (counts unscaled)
+  // Increments by one per frame: per exposure (a gap is a lost frame), or
+  // per frame of a Continuous link (a gap is a frame nobody read).
+  std::uint64_t sequence = 0;
+  // Start of exposure, CLOCK_MONOTONIC (or virtual); for a Continuous stream,
+  // the start of the link's frame.
+  std::chrono::nanoseconds timestamp{0};
 };
 
 class CameraError : public std::runtime_error {

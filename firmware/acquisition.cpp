@@ -5,6 +5,7 @@
 #include <map>
 #include <mutex>
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include "drivers/realtime_thread.hpp"
@@ -22,6 +23,13 @@ constexpr nanoseconds kPoll = std::chrono::milliseconds(1);
 
 nanoseconds us(double value) {
   return nanoseconds{std::llround(value * 1e3)};
+}
+
+// "3000", "2.5": a setting as its profile would write it.
+std::string number(double value) {
+  std::ostringstream s;
+  s << value;
+  return s.str();
 }
 
 // Turns the light off and disables the stage however the scan ends.
@@ -292,6 +300,20 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
   auto halted = [&] { return shared.stopping() || abort_.load(std::memory_order_acquire); };
   std::map<std::string, std::optional<std::uint64_t>> next_sequence;
   std::map<std::string, int> received, skip;  // frames of the current set, per camera
+  // How each camera's frames are taken: a continuous stream's frame of a
+  // trigger is the first one stamped its image latency after it, and its
+  // sequence gaps are frames nobody read, not lost exposures.
+  struct Stream {
+    bool continuous = false;
+    nanoseconds latency{0};
+  };
+  std::map<std::string, Stream> streams;
+  for (const std::string& name : options.cameras) {
+    const drivers::CameraProfile& profile = board_.profile().camera(name);
+    streams[name] = {profile.config.stream == drivers::FrameStream::Continuous ||
+                         profile.config.trigger == drivers::TriggerMode::FreeRunning,
+                     us(profile.image_latency_ms * 1e3)};
+  }
   int base = 0;
   for (const FringeSetId id : formats::kFringeSets) {
     const int n = static_cast<int>(plan.set(id).positions.size());
@@ -309,14 +331,26 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
         // The set this camera's frame belongs to: the motion set itself, or
         // (ring plan) the other one for a camera facing the other half.
         const FringeSetId camera_set = plan.setOf(name, id);
+        const Stream& stream = streams[name];
+        // A stream whose frames never get new enough (a camera that repeats
+        // an old frame, stamps from another clock) times out like silence.
+        nanoseconds give_up = clock.now() + stream.latency + timeout;
         for (;;) {
           if (halted()) return;
           std::optional<drivers::Frame> f = camera.waitFrame(timeout);
+          const std::int64_t triggered_at =
+              shared.trigger_ns[static_cast<std::size_t>(frame)].load(std::memory_order_acquire);
+          const bool too_old = f && f->timestamp.count() < triggered_at + stream.latency.count();
+          const bool stale = too_old && clock.now() > give_up;
+          if (stale) f.reset();
           if (!f) {
+            give_up = clock.now() + stream.latency + timeout;
             if (retried) {
-              shared.fail("camera '" + name + "': no frame " + std::to_string(k) + " of the " +
-                          std::string(formats::toString(camera_set)) + " set within " +
-                          std::to_string(options.frame_timeout_ms) + " ms, twice");
+              shared.fail(
+                  "camera '" + name + "': no frame " + std::to_string(k) + " of the " +
+                  std::string(formats::toString(camera_set)) + " set within " +
+                  number(options.frame_timeout_ms) + " ms, twice" +
+                  (stale ? " (its frames kept coming, none stamped after the trigger)" : ""));
               return;
             }
             retried = true;
@@ -339,16 +373,14 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
               skip[c] = received[c];
             continue;
           }
-          const std::int64_t triggered_at =
-              shared.trigger_ns[static_cast<std::size_t>(frame)].load(std::memory_order_acquire);
-          if (f->timestamp.count() < triggered_at)
-            continue;  // exposed before this frame's trigger (or sweep): late or free-running
+          // Exposed before this frame's trigger (or sweep), or a stream's older frame.
+          if (too_old) continue;
           if (skip[name] > 0) {  // a re-sweep's frame this camera already has
             --skip[name];
             continue;
           }
           std::optional<std::uint64_t>& expected = next_sequence[name];
-          if (expected && f->sequence != *expected) {
+          if (expected && f->sequence != *expected && !stream.continuous) {
             shared.fail("camera '" + name + "': frame sequence jumped from " +
                         std::to_string(*expected) + " to " + std::to_string(f->sequence) +
                         " at frame " + std::to_string(k) + " of the " +
@@ -393,6 +425,11 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
         options.mode == drivers::ScanMode::Continuous)
       throw std::invalid_argument("scan: camera '" + name +
                                   "' is free-running; continuous mode needs triggered cameras");
+    if (camera.config.stream == drivers::FrameStream::Continuous &&
+        options.mode == drivers::ScanMode::Continuous)
+      throw std::invalid_argument("scan: camera '" + name +
+                                  "' streams continuously (stream = \"continuous\"); continuous "
+                                  "mode needs cameras that deliver one frame per trigger");
   }
   ScanReport report;
   Shared shared(plan.frames());

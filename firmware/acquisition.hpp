@@ -5,7 +5,10 @@
 //     when allowed) homes the stage when needed, moves and settles (or sweeps
 //     at constant speed in continuous mode), and fires the trigger;
 //   - the calling thread waits for each camera's frame, checks its sequence
-//     and timestamp, and hands it to the FrameSink (the streaming fold).
+//     and timestamp, and hands it to the FrameSink (the streaming fold). A
+//     camera that streams continuously (drivers::FrameStream) gives the first
+//     frame stamped its image latency after the trigger; the older ones are
+//     passed over and its sequence gaps are not errors.
 // They meet through atomics, and every wait is on the board's clock, so the
 // virtual head's discrete-event clock runs the same code as real time.
 //
@@ -16,7 +19,8 @@
 // Faults: a camera timeout is retried once (stop-and-go triggers the frame
 // again; continuous mode sweeps the set again and each camera skips the frames
 // it already has), then the scan fails; a frame the camera lost without a
-// timeout (a jump of its sequence numbers) fails it; so do a home switch that
+// timeout (a jump of its sequence numbers, for a camera that delivers one
+// frame per exposure) fails it; so do a home switch that
 // never fires, the stage fault input and lost steps (a re-seek of home after
 // the scan). Whatever happens, the stage is disabled and the light is off
 // when run() returns.

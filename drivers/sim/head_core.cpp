@@ -195,11 +195,21 @@ void VirtualCamera::configure(const drivers::CameraConfig& config) {
   params_.exposure_us = config.exposure_us > 0 ? config.exposure_us : model.exposure_us;
   params_.gain = config.gain;
   mode_ = config.trigger;
+  stream_ = config.trigger == drivers::TriggerMode::FreeRunning ? drivers::FrameStream::Continuous
+                                                                : config.stream;
+  if (stream_ == drivers::FrameStream::Continuous && mode_ == drivers::TriggerMode::Software) {
+    throw drivers::CameraError("camera '" + params_.name +
+                               "': a software trigger delivers one frame per request, not a "
+                               "continuous stream");
+  }
 }
 
 void VirtualCamera::start() {
   pending_.clear();
   stream_origin_ = core_.clock.now();
+  link_frame_ = -1;
+  shown_.reset();
+  shown_image_.release();
   started_ = true;
 }
 
@@ -241,19 +251,63 @@ void VirtualCamera::requestFrame() {
   core_.clock.notifyEvent();
 }
 
+std::optional<drivers::Frame> VirtualCamera::waitLinkFrame(Nanoseconds timeout) {
+  const Nanoseconds deadline = core_.clock.now() + std::max(timeout, Nanoseconds{0});
+  const Nanoseconds period{std::llround(1e9 / params_.frame_rate_hz)};
+  const Nanoseconds readout{std::llround(params_.readout_us * 1e3)};
+  const Nanoseconds transfer = exposure() + readout;
+  for (;;) {
+    // The first link frame not delivered yet.
+    const Nanoseconds since = core_.clock.now() - stream_origin_ - transfer;
+    std::int64_t k = since.count() <= 0 ? 0 : (since + period - Nanoseconds{1}) / period;
+    k = std::max(k, link_frame_ + 1);
+    const Nanoseconds start = stream_origin_ + k * period;
+    const Nanoseconds ready = start + transfer + Nanoseconds{delay_ns_.load()};
+    if (ready > deadline) {
+      core_.clock.sleepUntil(deadline);
+      return std::nullopt;
+    }
+    core_.clock.sleepUntil(ready);
+    delay_ns_ = 0;
+    link_frame_ = k;
+    if (drop_ > 0) {  // never delivered: a gap in the sequence
+      --drop_;
+      continue;
+    }
+    drivers::Frame frame;
+    frame.sequence = static_cast<std::uint64_t>(k);
+    frame.timestamp = start;
+    if (mode_ == drivers::TriggerMode::FreeRunning) {
+      frame.image = renderExposure({start, frame.sequence});
+    } else {
+      // The latest exposure finished by the link frame's start.
+      while (const std::optional<Pending> p = pending_.front()) {
+        if (p->start + transfer > start) break;
+        shown_ = *p;
+        shown_image_.release();
+        pending_.pop();
+      }
+      if (!shown_) {
+        frame.image = cv::Mat::zeros(params_.height, params_.width,
+                                     params_.bit_depth > 8 ? CV_16UC1 : CV_8UC1);
+      } else {
+        if (shown_image_.empty()) shown_image_ = renderExposure(*shown_);
+        frame.image = shown_image_.clone();
+      }
+    }
+    tearIfAsked(frame.image);
+    return frame;
+  }
+}
+
 std::optional<drivers::Frame> VirtualCamera::waitFrame(Nanoseconds timeout) {
   if (!started_) throw drivers::CameraError("camera '" + params_.name + "': not started");
+  if (stream_ == drivers::FrameStream::Continuous) return waitLinkFrame(timeout);
   const Nanoseconds deadline = core_.clock.now() + std::max(timeout, Nanoseconds{0});
   const Nanoseconds readout{std::llround(params_.readout_us * 1e3)};
   for (;;) {
     // Read before looking, so a trigger in between is not missed.
     const std::uint64_t epoch = core_.clock.eventEpoch();
-    if (mode_ == drivers::TriggerMode::FreeRunning && pending_.empty()) {
-      const Nanoseconds period{std::llround(1e9 / params_.frame_rate_hz)};
-      const Nanoseconds now = core_.clock.now();
-      const auto k = (now - stream_origin_ + period - Nanoseconds{1}) / period;
-      expose(std::max(stream_origin_ + k * period, last_start_ + std::max(period, exposure())));
-    }
     const std::optional<Pending> p = pending_.front();
     if (!p) {
       if (core_.clock.now() >= deadline) return std::nullopt;
@@ -278,7 +332,7 @@ std::optional<drivers::Frame> VirtualCamera::waitFrame(Nanoseconds timeout) {
   }
 }
 
-drivers::Frame VirtualCamera::render(const Pending& p) {
+cv::Mat VirtualCamera::renderExposure(const Pending& p) {
   const auto geometry = core_.geometryFor(index_);
   Exposure e;
   const int n = core_.config.render.exposure_samples;
@@ -305,17 +359,23 @@ drivers::Frame VirtualCamera::render(const Pending& p) {
   e.noise_scale = core_.config.noise.scale;
   e.noise_key =
       mixBits(core_.seed ^ mixBits((static_cast<std::uint64_t>(index_) << 48) ^ p.sequence));
+  return renderFrame(*geometry, core_.projector, e, core_.noise, core_.config.render.threads);
+}
+
+drivers::Frame VirtualCamera::render(const Pending& p) {
   drivers::Frame frame;
-  frame.image =
-      renderFrame(*geometry, core_.projector, e, core_.noise, core_.config.render.threads);
+  frame.image = renderExposure(p);
   frame.sequence = p.sequence;
   frame.timestamp = p.start;
-  if (corrupt_ > 0) {  // a torn transfer: the lower half of the frame is garbage
-    --corrupt_;
-    cv::Mat lower = frame.image.rowRange(frame.image.rows / 2, frame.image.rows);
-    cv::randu(lower, 0, frame.image.depth() == CV_8U ? 256 : 4096);
-  }
+  tearIfAsked(frame.image);
   return frame;
+}
+
+void VirtualCamera::tearIfAsked(cv::Mat& image) {
+  if (corrupt_ <= 0) return;
+  --corrupt_;  // a torn transfer: the lower half of the frame is garbage
+  cv::Mat lower = image.rowRange(image.rows / 2, image.rows);
+  cv::randu(lower, 0, image.depth() == CV_8U ? 256 : 4096);
 }
 
 }  // namespace cylscan::sim

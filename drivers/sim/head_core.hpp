@@ -101,13 +101,25 @@ class VirtualCamera final : public drivers::Camera {
     std::uint64_t sequence = 0;
   };
   bool expose(Nanoseconds start);
+  cv::Mat renderExposure(const Pending& p);
   drivers::Frame render(const Pending& p);
+  void tearIfAsked(cv::Mat& image);  // corruptNextFrame()
   Nanoseconds exposure() const;
+  // A Continuous stream: link frame k starts at the stream's origin + k
+  // periods (1 / frame_rate_hz) and is delivered exposure + readout later.
+  // Free-running, it is an exposure of its own; triggered, it shows the
+  // latest exposure finished by its start (black before the first). Frames
+  // nobody waits for are not delivered: the sequence (k) shows the gap.
+  std::optional<drivers::Frame> waitLinkFrame(Nanoseconds timeout);
 
   HeadCore& core_;
   int index_;
   CameraParams params_;  // the configured sensor (exposure, gain, bit depth)
   drivers::TriggerMode mode_ = drivers::TriggerMode::GpioPulse;
+  drivers::FrameStream stream_ = drivers::FrameStream::PerExposure;
+  std::int64_t link_frame_ = -1;  // the last link frame delivered (Continuous)
+  std::optional<Pending> shown_;  // the exposure the link shows (Continuous, triggered)
+  cv::Mat shown_image_;           // its image, rendered once
   std::atomic<bool> started_{false};
   SpscQueue<Pending, 256> pending_;
   std::uint64_t next_sequence_ = 0;

@@ -235,6 +235,48 @@ TEST(BoardProfileFaults, TriggerLineNotInGpio) {
               file, 17, "camera[0].trigger_line", "only with trigger = \"gpio\"");
 }
 
+TEST(BoardProfile, HowACameraStreams) {
+  TempDir dir;
+  // By default one frame per exposure, no latency.
+  dir.write("board.toml", hardwareGpio() + v4l2Main());
+  BoardProfile p = loadBoardProfile(dir.path());
+  EXPECT_EQ(p.cameras[0].config.stream, FrameStream::PerExposure);
+  EXPECT_EQ(p.cameras[0].image_latency_ms, 0.0);
+  // A triggered camera behind a link that runs on its own clock.
+  dir.write("board.toml",
+            hardwareGpio() + v4l2Main() + "stream = \"continuous\"\nimage_latency_ms = 250.0\n");
+  p = loadBoardProfile(dir.path());
+  EXPECT_EQ(p.cameras[0].config.trigger, TriggerMode::GpioPulse);
+  EXPECT_EQ(p.cameras[0].config.stream, FrameStream::Continuous);
+  EXPECT_EQ(p.cameras[0].image_latency_ms, 250.0);
+  // A free-running camera streams continuously whether it says so or not.
+  dir.write("board.toml", hardwareGpio() + v4l2Main() + "trigger = \"free\"\n");
+  p = loadBoardProfile(dir.path());
+  EXPECT_EQ(p.cameras[0].config.stream, FrameStream::Continuous);
+  EXPECT_EQ(toString(p.cameras[0].config.stream), "continuous");
+}
+
+TEST(BoardProfileFaults, StreamKeys) {
+  TempDir dir;
+  const auto file = dir.path() / "board.toml";
+  expectFault(profileError(dir, hardwareGpio() + v4l2Main() + "stream = \"burst\"\n"), file, 16,
+              "camera[0].stream", "unknown stream 'burst'");
+  expectFault(profileError(dir, hardwareGpio() + v4l2Main() +
+                                    "trigger = \"free\"\nstream = \"per-exposure\"\n"),
+              file, 17, "camera[0].stream", "a free-running camera streams continuously");
+  expectFault(profileError(dir, hardwareGpio() + v4l2Main() + "image_latency_ms = 20.0\n"), file,
+              16, "camera[0].image_latency_ms", "only with stream = \"continuous\"");
+  expectFault(profileError(dir, hardwareGpio() + v4l2Main() +
+                                    "stream = \"continuous\"\nimage_latency_ms = -1.0\n"),
+              file, 17, "camera[0].image_latency_ms", "must be >= 0");
+  // libcamera's software trigger asks for one frame: no continuous stream.
+  std::string lib = v4l2Main();
+  lib.replace(lib.find("\"v4l2\""), 6, "\"libcamera\"");
+  expectFault(
+      profileError(dir, hardwareGpio() + lib + "trigger = \"software\"\nstream = \"continuous\"\n"),
+      file, 17, "camera[0].stream", "needs trigger = \"gpio\" or \"free\"");
+}
+
 TEST(BoardProfileFaults, BadLines) {
   TempDir dir;
   const auto file = dir.path() / "board.toml";

@@ -110,6 +110,68 @@ TEST_F(CameraTest, FreeRunningStreams) {
   EXPECT_NEAR(static_cast<double>((b->timestamp - a->timestamp).count()), 1e9 / 30, 1e3);
 }
 
+TEST_F(CameraTest, AFreeRunningStreamNumbersItsFramesOnItsOwnClock) {
+  cam.stop();
+  drivers::CameraConfig config;
+  config.trigger = drivers::TriggerMode::FreeRunning;
+  cam.configure(config);
+  cam.start();
+  const auto a = cam.waitFrame(1s);
+  ASSERT_TRUE(a);
+  // Ten periods nobody reads: those frames are never delivered, and the
+  // sequence says how many.
+  head.clock().sleepUntil(head.clock().now() + 10 * 33'333'333ns);
+  const auto b = cam.waitFrame(1s);
+  ASSERT_TRUE(b);
+  EXPECT_GE(b->sequence, a->sequence + 10);
+  EXPECT_LE(b->sequence, a->sequence + 11);
+  EXPECT_NEAR(static_cast<double>((b->timestamp - a->timestamp).count()),
+              static_cast<double>(b->sequence - a->sequence) * 1e9 / 30, 1e3);
+}
+
+TEST_F(CameraTest, ATriggeredContinuousStreamRepeatsTheLatestExposure) {
+  cam.stop();
+  drivers::CameraConfig config;
+  config.trigger = drivers::TriggerMode::GpioPulse;
+  config.stream = drivers::FrameStream::Continuous;
+  cam.configure(config);
+  cam.start();
+  // Before any trigger the link carries black frames, one per period.
+  const auto black = cam.waitFrame(1s);
+  ASSERT_TRUE(black);
+  EXPECT_EQ(cv::countNonZero(black->image), 0);
+  const auto next = cam.waitFrame(1s);
+  ASSERT_TRUE(next);
+  EXPECT_EQ(next->sequence, black->sequence + 1);
+  EXPECT_EQ(cv::countNonZero(next->image), 0) << "no trigger yet";
+
+  const auto t = head.clock().now();
+  lines.pulseTrigger();
+  // The exposure is on the link from the first frame that starts after it
+  // ended (trigger latency + exposure + readout: 18.02 ms) and stays there.
+  std::optional<drivers::Frame> first;
+  while (!first) {
+    auto f = cam.waitFrame(1s);
+    ASSERT_TRUE(f);
+    if (cv::countNonZero(f->image) > 0) first = std::move(f);
+  }
+  EXPECT_GE(first->timestamp, t + 20us + 18ms);
+  EXPECT_LT(first->timestamp, t + 20us + 18ms + 33'333'334ns);
+  const auto again = cam.waitFrame(1s);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->sequence, first->sequence + 1);
+  EXPECT_TRUE(same(again->image, first->image));
+
+  // A new exposure at another angle replaces it.
+  lines.move(50);
+  lines.pulseTrigger();
+  head.clock().sleepUntil(head.clock().now() + 60ms);
+  const auto moved = cam.waitFrame(1s);
+  ASSERT_TRUE(moved);
+  EXPECT_FALSE(same(moved->image, first->image));
+  EXPECT_GT(cv::countNonZero(moved->image), 0);
+}
+
 TEST_F(CameraTest, ConfigurationIsChecked) {
   cam.stop();
   drivers::CameraConfig config;
@@ -118,6 +180,10 @@ TEST_F(CameraTest, ConfigurationIsChecked) {
   EXPECT_THROW(cam.configure(config), drivers::CameraError);
   config = {};
   config.bit_depth = 9;
+  EXPECT_THROW(cam.configure(config), drivers::CameraError);
+  config = {};
+  config.trigger = drivers::TriggerMode::Software;
+  config.stream = drivers::FrameStream::Continuous;
   EXPECT_THROW(cam.configure(config), drivers::CameraError);
   cam.start();
   EXPECT_THROW(cam.configure({}), drivers::CameraError);
