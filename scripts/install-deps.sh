@@ -34,7 +34,6 @@ BACKPORTS_PKGS=(
   "libgpiod-dev 2.0"       # GPIO lines (drivers/gpio_gpiod.cpp)
   "libcamera-dev 0.3"      # cameras through libcamera (drivers/camera_libcamera.cpp)
 )
-BACKPORTS_SOURCES=/etc/apt/sources.list.d/bookworm-backports.sources
 
 installed() {
   dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"
@@ -53,18 +52,8 @@ update_once() {
   fi
 }
 
-# Enable bookworm-backports (deb822, like the system's own sources) unless some
-# source already names the suite.
-if ! grep -rqs "bookworm-backports" /etc/apt/sources.list /etc/apt/sources.list.d/; then
-  $SUDO tee "$BACKPORTS_SOURCES" >/dev/null <<'SOURCES'
-Types: deb
-URIs: http://deb.debian.org/debian
-Suites: bookworm-backports
-Components: main
-Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
-SOURCES
-  update_once
-fi
+# bookworm-backports in apt's sources (its lists updated when it was added).
+if [ -n "$(bash "$(dirname "$0")/enable-backports.sh")" ]; then updated=1; fi
 
 missing=()
 for p in "${PKGS[@]}"; do

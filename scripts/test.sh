@@ -6,12 +6,16 @@
 #      test, the package installed into a throwaway root;
 #   2. the aarch64 cross build, its algo/formats tests under qemu-user and the
 #      fixed-point bit-identity digests against this amd64 build;
-#   3. every libFuzzer target for 20 s over its seed corpus;
-#   4. cppcheck over the project's sources;
-#   5. clang-tidy over the project's sources (scripts/lint.sh clang-tidy);
-#   6. AddressSanitizer + UBSan over the whole suite (scripts/sanitize.sh asan);
-#   7. ThreadSanitizer over the tests that run threads (scripts/sanitize.sh tsan);
-# CI gives the whole run 90 minutes on a 2-core machine. Stages 5 to 7 are long,
+#   3. the emulated board (tests/emulated-board/run.sh): the arm64 package
+#      on qemu-system-aarch64 -M virt, scans through cylscand under systemd
+#      against the kernel's gpio-sim and vivid drivers; it builds in the
+#      cross stage's build directory;
+#   4. every libFuzzer target for 20 s over its seed corpus;
+#   5. cppcheck over the project's sources;
+#   6. clang-tidy over the project's sources (scripts/lint.sh clang-tidy);
+#   7. AddressSanitizer + UBSan over the whole suite (scripts/sanitize.sh asan);
+#   8. ThreadSanitizer over the tests that run threads (scripts/sanitize.sh tsan);
+# CI gives the whole run 90 minutes on a 2-core machine. Stages 6 to 8 are long,
 # so each is started only when its expected time still fits a budget of
 # TEST_BUDGET_S seconds (default 5250: 87.5 min) and is stopped at the
 # budget's end (that counts as a failure; with its 30 s to exit it still ends
@@ -71,6 +75,7 @@ stage "suite" suite
 if [ "${TEST_QUICK:-0}" != 1 ]; then
   # The suite's Release build gives the amd64 reference digests.
   stage "cross-aarch64" env HOST_BUILD_DIR=build/default bash scripts/cross-test.sh aarch64
+  stage "emulated-board" env EMULATED_BUILD_DIR=build/cross-aarch64 bash tests/emulated-board/run.sh
   stage "fuzz" bash scripts/fuzz.sh 20
   stage "cppcheck" bash scripts/lint.sh cppcheck
   # Expected times: measured on the 2-core development machine (docs/robustness.md,

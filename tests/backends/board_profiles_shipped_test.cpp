@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "drivers/board_profile.hpp"
+#include "drivers/sim/head_config.hpp"
 #include "profile_support.hpp"
 
 namespace cylscan::drivers {
@@ -178,18 +179,31 @@ TEST(ShippedBoardProfiles, EachHasAReadme) {
   }
 }
 
-// The emulated board's gpio-sim chip must carry the names the profile looks up,
-// and its feeder models the virtual head: the same step geometry as board/sim.
-TEST(ShippedBoardProfiles, TheEmulatedBoardSharesTheVirtualHeadsStage) {
+// The emulated board's gpio-sim chip must carry the names the profile looks
+// up, and its feeder models it with tests/emulated-board/head.toml (the
+// virtual head with this profile's stage and camera): the same step geometry,
+// home window and image size; the profile's image latency covers the head
+// camera's exposure and readout too (the in-process twin of the emulated
+// board's scan runs that head with this profile).
+TEST(ShippedBoardProfiles, TheEmulatedBoardMatchesItsFeedersHead) {
   const BoardProfile virt = loadBoardProfile(boardDir("qemu-virt"));
-  const BoardProfile sim = loadBoardProfile(boardDir("sim"));
-  EXPECT_DOUBLE_EQ(virt.stage.stepsPerDeg(), sim.stage.stepsPerDeg());
-  EXPECT_DOUBLE_EQ(virt.stage.home_offset_deg, sim.stage.home_offset_deg);
-  EXPECT_EQ(virt.stage.home_direction, sim.stage.home_direction);
+  const sim::HeadConfig head = sim::loadHeadConfig(std::filesystem::path(CYLSCAN_SOURCE_DIR) /
+                                                   "tests/emulated-board/head.toml");
+  EXPECT_DOUBLE_EQ(virt.stage.stepsPerDeg(), head.stage.full_steps_per_rev * head.stage.microsteps *
+                                                 head.stage.gear_ratio / 360.0);
+  EXPECT_DOUBLE_EQ(virt.stage.home_offset_deg, head.stage.home_window_deg / 2);
   const std::set<std::string> names{virt.gpio.step.name,   virt.gpio.dir.name,
                                     virt.gpio.enable.name, virt.gpio.light.name,
                                     virt.gpio.home.name,   virt.gpio.triggers.at("trigger").name};
   EXPECT_EQ(names, (std::set<std::string>{"step", "dir", "enable", "trigger", "light", "home"}));
+  ASSERT_EQ(head.cameras.size(), 1U);
+  const sim::CameraParams& camera = head.cameras.front();
+  const CameraProfile& main = virt.camera("main");
+  EXPECT_EQ(main.config.width, camera.width);
+  EXPECT_EQ(main.config.height, camera.height);
+  EXPECT_EQ(main.config.stream, FrameStream::Continuous);
+  EXPECT_GT(main.image_latency_ms,
+            (camera.trigger_latency_us + camera.exposure_us + camera.readout_us) / 1000.0);
 }
 
 }  // namespace

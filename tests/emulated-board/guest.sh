@@ -1,12 +1,16 @@
 #!/bin/busybox sh
-# Runs in the emulated board (tests/emulated-board/run.sh boots it): sets up
-# gpio-sim with the lines of board/qemu-virt/board.toml and vivid with
-# output-to-capture loopback, then checks them and the installed cylscan.
+# Runs in the emulated board as a systemd service (emulated-board.service,
+# started by the boot target emulated-board.target; run.sh boots the guest):
+# sets up gpio-sim with the lines of board/qemu-virt/board.toml and vivid
+# with output-to-capture loopback (the firmware's camera), checks them, the
+# installed package and what udev and systemd made of it, then runs the scans
+# through cylscand (guest-scan.sh).
 # Each check prints one "PASS <what>" or "FAIL <what>: <why>" line on the
-# console; run.sh counts them. /tmp is the host's results directory.
+# console; run.sh counts them. /results is the host's results directory.
 export PATH=/usr/sbin:/usr/bin:/sbin:/bin
 bb=/bin/busybox
 board=/usr/share/cylscan/board/qemu-virt
+res=/results
 kver=$(uname -r)
 pass() { echo "PASS $1"; }
 fail() { echo "FAIL $1"; }
@@ -24,9 +28,16 @@ finish() {
   "$bb" sync
   "$bb" poweroff -f
 }
+echo "INFO guest time at the checks' start (systemd up): $(uptime)s"
 
 check "cylscan's arm64 package runs ($(uname -m), kernel $kver)" /usr/bin/cylscan --version
-check "cylscand's arm64 program runs" /usr/bin/cylscand --help
+# The package's sysusers.d file, applied by systemd at boot as on a board.
+groups=$("$bb" id -nG cylscan 2>/dev/null)
+if echo " $groups " | "$bb" grep -q ' gpio ' && echo " $groups " | "$bb" grep -q ' video '; then
+  pass "systemd-sysusers made the package's user: cylscan in groups $groups"
+else
+  fail "the package's user cylscan in groups gpio and video: id says '${groups:-no such user}'"
+fi
 
 # --- gpio-sim: one bank whose lines carry the board profile's names ---
 modprobe configfs 2>/dev/null
@@ -58,15 +69,6 @@ else
   fi
 fi
 
-# --- v4l2loopback: the scan's camera, /dev/video0 as in the board profile ---
-modprobe videodev 2>/dev/null
-if "$bb" insmod /opt/emulated-board/modules/v4l2loopback.ko video_nr=0 exclusive_caps=0 \
-  card_label=cylscan-feeder max_buffers=4 >/tmp/insmod.out 2>&1; then
-  pass "v4l2loopback loads (/dev/video0: the camera the feeder writes)"
-else
-  fail "v4l2loopback loads: $("$bb" cat /tmp/insmod.out)"
-fi
-
 # --- vivid: capture + output nodes, output looped back to capture ---
 if ! modprobe vivid n_devs=1 node_types=0x101 >/tmp/modprobe.out 2>&1; then
   fail "vivid loads: $("$bb" cat /tmp/modprobe.out)"
@@ -88,6 +90,12 @@ for d in /dev/video*; do
   esac
 done
 echo "INFO vivid capture $cap, output $out (nodes: $(echo /dev/video*))"
+camdev=$("$bb" sed -n 's/^device *= *"\(\/dev\/video[0-9]*\)".*/\1/p' "$board/board.toml" | "$bb" head -n1)
+if [ -n "$cap" ] && [ "$cap" = "$camdev" ] && [ -n "$out" ]; then
+  pass "the profile's camera $camdev is vivid's capture node; the feeder writes to its output $out"
+else
+  fail "the profile's camera '$camdev' is vivid's capture node: vivid gave capture '$cap', output '$out'"
+fi
 [ -n "$cap" ] || v4l2-ctl -d /dev/video1 --info 2>&1 | "$bb" head -n 5
 formats=$(v4l2-ctl -d "$cap" --list-formats 2>/dev/null)
 case "$formats" in
@@ -121,6 +129,16 @@ if "$bb" cmp -s /tmp/pattern.raw /tmp/captured.raw; then
   pass "vivid loops a frame written to $out back out of $cap bit-exactly (${w}x${h} GREY)"
 else
   fail "vivid loopback: the captured frame differs from the written one ($("$bb" wc -c </tmp/captured.raw 2>/dev/null) bytes; $("$bb" tail -n 2 /tmp/capture.out | "$bb" tr '\n' ' '))"
+fi
+
+# The package's udev rules: the GPIO chip to group gpio, the cameras to video.
+udevadm settle --timeout=60
+gpiochip=/dev/$("$bb" cat /sys/kernel/config/gpio-sim/cylscan/bank0/chip_name 2>/dev/null)
+owners="$gpiochip $("$bb" stat -c '%G %a' "$gpiochip" 2>&1), $cap $("$bb" stat -c '%G %a' "$cap" 2>&1)"
+if [ "$("$bb" stat -c %G "$gpiochip" 2>/dev/null)" = gpio ] && [ "$("$bb" stat -c %G "$cap" 2>/dev/null)" = video ]; then
+  pass "udev applied the package's rules: $owners"
+else
+  fail "udev and the package's rules: $owners (want group gpio and video)"
 fi
 
 echo "INFO guest time before the scans: $(uptime)s"

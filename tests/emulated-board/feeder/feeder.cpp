@@ -8,9 +8,11 @@
 //       pulses into stage angle on the virtual head's stage model (HEAD),
 //       drives the home line through gpio-sim's pull, and on each trigger
 //       edge renders the virtual head's frame for that angle (SCENE) and
-//       writes it to the V4L2 output node DEV. SIGTERM ends it; FILE then
-//       gets one line per trigger and the stage's counters.
-//       --stop-after K: writes no frame after the K-th (the camera stops).
+//       queues it on vivid's video output node DEV, which vivid loops back
+//       to its capture node (the firmware's camera). SIGTERM ends it; FILE
+//       then gets one line per trigger and the stage's counters.
+//       --stop-after K: after the K-th frame the camera's link goes silent
+//       (vivid's "Percentage of Dropped Buffers" at 100: no capture frames).
 //       --rt-priority P: runs at SCHED_FIFO priority P.
 //   cylscan-emulated-feeder angles BUNDLE LOG --steps-per-deg S --tolerance-steps T
 //       the bundle's executed angles against the angles the feeder counted.
@@ -21,12 +23,17 @@
 #include <poll.h>
 #include <sched.h>
 #include <sys/ioctl.h>
+#include <sys/mman.h>
+#include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <csignal>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -230,50 +237,140 @@ class GpioTrace {
   std::string pending_;
 };
 
-// A V4L2 output node that takes frames with write(): v4l2loopback's writer side.
-class VideoOut {
+std::chrono::nanoseconds monotonicNow() {
+  timespec ts{};
+  ::clock_gettime(CLOCK_MONOTONIC, &ts);
+  return std::chrono::seconds(ts.tv_sec) + std::chrono::nanoseconds(ts.tv_nsec);
+}
+
+// vivid's video output node, streaming GREY frames through mmap buffers.
+// vivid's output thread takes a queued buffer off its queue only when another
+// is queued behind it, so the last frame queued stays on the output, and its
+// capture node (looped back) repeats it until the next: the feeder queues one
+// buffer per rendered frame and takes buffers back as vivid returns them.
+class VividOutput {
  public:
-  VideoOut(const fs::path& device, int width, int height)
-      : width_(width), height_(height), size_(static_cast<std::size_t>(width) * height) {
-    fd_ = ::open(device.c_str(), O_RDWR);
-    if (fd_ < 0)
-      throw std::runtime_error("cannot open " + device.string() + ": " + strerror(errno));
+  VividOutput(const fs::path& device, int width, int height) : device_(device.string()) {
+    fd_ = ::open(device.c_str(), O_RDWR | O_NONBLOCK);
+    if (fd_ < 0) fail("cannot open");
     v4l2_format fmt{};
     fmt.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
     fmt.fmt.pix.width = static_cast<unsigned>(width);
     fmt.fmt.pix.height = static_cast<unsigned>(height);
     fmt.fmt.pix.pixelformat = V4L2_PIX_FMT_GREY;
     fmt.fmt.pix.field = V4L2_FIELD_NONE;
-    fmt.fmt.pix.bytesperline = static_cast<unsigned>(width);
-    fmt.fmt.pix.sizeimage = static_cast<unsigned>(size_);
-    if (::ioctl(fd_, VIDIOC_S_FMT, &fmt) < 0)
-      throw std::runtime_error(device.string() +
-                               ": VIDIOC_S_FMT (output GREY): " + strerror(errno));
+    if (::ioctl(fd_, VIDIOC_S_FMT, &fmt) < 0) fail("VIDIOC_S_FMT (output GREY)");
     if (fmt.fmt.pix.pixelformat != V4L2_PIX_FMT_GREY ||
         static_cast<int>(fmt.fmt.pix.width) != width ||
         static_cast<int>(fmt.fmt.pix.height) != height)
-      throw std::runtime_error(device.string() + ": the output does not take " +
-                               std::to_string(width) + "x" + std::to_string(height) + " GREY");
+      throw std::runtime_error(device_ + ": the output does not take " + std::to_string(width) +
+                               "x" + std::to_string(height) + " GREY");
+    stride_ = fmt.fmt.pix.bytesperline;
+    width_ = width;
+    height_ = height;
+    v4l2_requestbuffers req{};
+    req.count = 3;
+    req.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+    req.memory = V4L2_MEMORY_MMAP;
+    if (::ioctl(fd_, VIDIOC_REQBUFS, &req) < 0 || req.count < 2) fail("VIDIOC_REQBUFS");
+    for (unsigned i = 0; i < req.count; ++i) {
+      v4l2_buffer b{};
+      b.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+      b.memory = V4L2_MEMORY_MMAP;
+      b.index = i;
+      if (::ioctl(fd_, VIDIOC_QUERYBUF, &b) < 0) fail("VIDIOC_QUERYBUF");
+      void* p = ::mmap(nullptr, b.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_, b.m.offset);
+      if (p == MAP_FAILED) fail("mmap");
+      maps_.push_back({static_cast<std::uint8_t*>(p), b.length});
+      free_.push_back(i);
+    }
   }
-  ~VideoOut() {
+  ~VividOutput() {
+    if (streaming_) {
+      int type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+      ::ioctl(fd_, VIDIOC_STREAMOFF, &type);
+    }
+    for (const auto& m : maps_)
+      ::munmap(m.first, m.second);
     if (fd_ >= 0) ::close(fd_);
   }
-  VideoOut(const VideoOut&) = delete;
-  VideoOut& operator=(const VideoOut&) = delete;
-  void write(const cv::Mat& frame) {
+  VividOutput(const VividOutput&) = delete;
+  VividOutput& operator=(const VividOutput&) = delete;
+
+  // Queues `frame` (8-bit, the output's size); starts the stream with the first.
+  void queue(const cv::Mat& frame) {
     if (frame.cols != width_ || frame.rows != height_ || frame.type() != CV_8UC1)
       throw std::runtime_error("frame is not " + std::to_string(width_) + "x" +
                                std::to_string(height_) + " 8-bit");
-    const cv::Mat c = frame.isContinuous() ? frame : frame.clone();
-    const ssize_t n = ::write(fd_, c.data, size_);
-    if (n != static_cast<ssize_t>(size_))
-      throw std::runtime_error("writing a frame to the output: " + std::string(strerror(errno)));
+    reclaim(free_.empty() ? 2000 : 0);
+    if (free_.empty())
+      throw std::runtime_error(device_ + ": vivid returned no output buffer in 2 s");
+    const unsigned index = free_.back();
+    free_.pop_back();
+    std::uint8_t* dst = maps_[index].first;
+    for (int y = 0; y < height_; ++y)
+      std::memcpy(dst + static_cast<std::size_t>(y) * stride_, frame.ptr(y),
+                  static_cast<std::size_t>(width_));
+    v4l2_buffer b{};
+    b.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+    b.memory = V4L2_MEMORY_MMAP;
+    b.index = index;
+    b.bytesused = static_cast<unsigned>(static_cast<std::size_t>(stride_) * height_);
+    b.field = V4L2_FIELD_NONE;
+    if (::ioctl(fd_, VIDIOC_QBUF, &b) < 0) fail("VIDIOC_QBUF");
+    if (!streaming_) {
+      int type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+      if (::ioctl(fd_, VIDIOC_STREAMON, &type) < 0) fail("VIDIOC_STREAMON");
+      streaming_ = true;
+    }
+  }
+
+  // Sets one of vivid's controls by its name (the streaming controls are
+  // shared by its capture and output nodes).
+  void setControl(const std::string& name, int value) {
+    v4l2_queryctrl q{};
+    q.id = V4L2_CTRL_FLAG_NEXT_CTRL;
+    while (::ioctl(fd_, VIDIOC_QUERYCTRL, &q) == 0) {
+      if (name == reinterpret_cast<const char*>(q.name)) {
+        v4l2_control c{};
+        c.id = q.id;
+        c.value = value;
+        if (::ioctl(fd_, VIDIOC_S_CTRL, &c) < 0) fail("setting '" + name + "'");
+        return;
+      }
+      q.id |= V4L2_CTRL_FLAG_NEXT_CTRL;
+    }
+    throw std::runtime_error(device_ + ": no control '" + name + "'");
   }
 
  private:
+  [[noreturn]] void fail(const std::string& what) const {
+    throw std::runtime_error(device_ + ": " + what + ": " + strerror(errno));
+  }
+  // Takes back the buffers vivid is done with, waiting up to `timeout_ms` for one.
+  void reclaim(int timeout_ms) {
+    if (!streaming_) return;
+    pollfd p{fd_, POLLOUT, 0};
+    if (::poll(&p, 1, timeout_ms) <= 0) return;
+    for (;;) {
+      v4l2_buffer b{};
+      b.type = V4L2_BUF_TYPE_VIDEO_OUTPUT;
+      b.memory = V4L2_MEMORY_MMAP;
+      if (::ioctl(fd_, VIDIOC_DQBUF, &b) < 0) {
+        if (errno == EAGAIN) return;
+        fail("VIDIOC_DQBUF");
+      }
+      free_.push_back(b.index);
+    }
+  }
+
+  std::string device_;
   int fd_ = -1;
-  int width_, height_;
-  std::size_t size_;
+  int width_ = 0, height_ = 0;
+  unsigned stride_ = 0;
+  bool streaming_ = false;
+  std::vector<std::pair<std::uint8_t*, std::size_t>> maps_;
+  std::vector<unsigned> free_;
 };
 
 int runFeeder(const Args& a) {
@@ -292,8 +389,9 @@ int runFeeder(const Args& a) {
   trace_options.threads = head.render.threads;
   std::cerr << "feeder: tracing " << cam.width << "x" << cam.height << " pixels of the scene\n";
   const sim::PixelGeometry geometry = tracePixels(scene, camera, projector, trace_options);
-  VideoOut out(a.get("video"), cam.width, cam.height);
-  out.write(cv::Mat::zeros(cam.height, cam.width, CV_8UC1));  // the writer is streaming
+  VividOutput out(a.get("video"), cam.width, cam.height);
+  out.setControl("Percentage of Dropped Buffers", 0);
+  out.queue(cv::Mat::zeros(cam.height, cam.width, CV_8UC1));  // streaming before the capture
 
   const int step = chip.offset(head.lines.step.name);
   const int dir = chip.offset(head.lines.dir.name);
@@ -320,6 +418,7 @@ int runFeeder(const Args& a) {
   std::map<int, bool> level;
   std::ostringstream log;
   long triggers = 0, written = 0, home_edges = 0;
+  double worst_latency_ms = 0;  // trigger edge → its frame queued on the output
   while (!g_stop.load()) {
     for (const GpioTrace::Event& e : trace.read(200)) {
       const int offset = e.gpio - chip.base();
@@ -346,13 +445,20 @@ int runFeeder(const Args& a) {
         x.noise_scale = head.noise.scale;
         // The virtual head's key for camera 0's exposure number `triggers`.
         x.noise_key = sim::mixBits(seed ^ sim::mixBits(static_cast<std::uint64_t>(triggers)));
-        log << "trigger " << triggers << " position " << stage.position() << " angle_deg "
-            << x.stage_deg[0] << " light " << x.light[0] << "\n";
         ++triggers;
+        double latency_ms = 0;
         if (stop_after < 0 || triggers <= stop_after) {
-          out.write(sim::renderFrame(geometry, projector, x, noise, head.render.threads));
+          out.queue(sim::renderFrame(geometry, projector, x, noise, head.render.threads));
+          latency_ms = static_cast<double>((monotonicNow() - e.time).count()) / 1e6;
+          worst_latency_ms = std::max(worst_latency_ms, latency_ms);
           ++written;
+        } else if (triggers == stop_after + 1) {
+          // The camera's link goes silent: vivid delivers no more frames.
+          out.setControl("Percentage of Dropped Buffers", 100);
         }
+        log << "trigger " << triggers - 1 << " position " << stage.position() << " angle_deg "
+            << x.stage_deg[0] << " light " << x.light[0] << " queued_after_ms " << latency_ms
+            << "\n";
       }
       if (stage.homeActive() != home_level) {
         home_level = stage.homeActive();
@@ -365,7 +471,9 @@ int runFeeder(const Args& a) {
   log << "pulses " << c.pulses << " ignored " << c.ignored << " lost " << c.lost << " forward "
       << c.forward << " backward " << c.backward << " position " << stage.position()
       << " home_edges " << home_edges << " triggers " << triggers << " written " << written
-      << " trace_overruns " << trace.overruns() << " enabled " << stage.enabled() << "\n";
+      << " trace_overruns " << trace.overruns() << " enabled " << stage.enabled()
+      << " worst_queue_ms " << worst_latency_ms << "\n";
+  out.setControl("Percentage of Dropped Buffers", 0);
   std::ofstream(a.get("log")) << log.str();
   std::cerr << "feeder: " << triggers << " triggers, " << written << " frames, " << c.pulses
             << " step pulses\n";
