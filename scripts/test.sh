@@ -79,9 +79,11 @@ if [ "${TEST_QUICK:-0}" != 1 ]; then
   stage "fuzz" bash scripts/fuzz.sh 20
   stage "cppcheck" bash scripts/lint.sh cppcheck
   # Expected times: measured on the 2-core development machine (docs/robustness.md,
-  # "What fits in CI's 90 minutes"): clang-tidy 985 s, ASan 1,361 s, TSan 491 s; with margin.
+  # "What fits in CI's 90 minutes"): clang-tidy 948-985 s, ASan 1,361 s once and more
+  # than 1,661 s another time (stopped at the budget with 603 of 651 tests passed),
+  # TSan 491 s; with margin.
   budgeted_stage "clang-tidy" 1200 bash scripts/lint.sh clang-tidy
-  budgeted_stage "asan" 1600 bash scripts/sanitize.sh asan
+  budgeted_stage "asan" 1900 bash scripts/sanitize.sh asan
   budgeted_stage "tsan" 650 bash scripts/sanitize.sh tsan
 fi
 printf '\n=== test.sh: %d s in all' $((SECONDS - t0))

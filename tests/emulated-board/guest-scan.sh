@@ -120,6 +120,7 @@ else
   else
     fail "a full scan through cylscand's API (scan '${id:-none}', state $state): $("$bb" head -c 400 "$scan" 2>/dev/null) $(unit_logs)"
   fi
+  echo "INFO the scan's step executor: $("$bb" sed -n 's/.*"step_jitter":\({[^}]*}\).*/\1/p' "$scan"), re-ramps $(json step_reramps <"$scan")"
   if [ "$(json realtime <"$scan")" = true ]; then
     pass "the scan's step thread ran SCHED_FIFO (the unit's ambient CAP_SYS_NICE)"
   else

@@ -43,8 +43,14 @@ mirror=${CYLSCAN_DEBIAN_MIRROR:-http://deb.debian.org/debian}
 
 jobs_pids=()
 qpid=""
+# A background step and what it started (make, mmdebstrap, ...).
+kill_tree() {
+  local child
+  for child in $(pgrep -P "$1" 2>/dev/null); do kill_tree "$child"; done
+  kill "$1" 2>/dev/null || true
+}
 cleanup() {
-  for p in "${jobs_pids[@]}" $qpid; do kill "$p" 2>/dev/null || true; done
+  for p in "${jobs_pids[@]}" $qpid; do kill_tree "$p"; done
   for p in "${jobs_pids[@]}" $qpid; do wait "$p" 2>/dev/null || true; done
 }
 trap cleanup EXIT
