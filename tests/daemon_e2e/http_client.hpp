@@ -32,7 +32,10 @@ struct HttpResponse {
   }
   // The body as JSON; a JSON null when it is not JSON.
   nlohmann::json json() const {
-    return nlohmann::json::parse(body, nullptr, /*allow_exceptions=*/false);
+    nlohmann::json j = nlohmann::json::parse(body, nullptr, /*allow_exceptions=*/false);
+    // parse() without exceptions gives a "discarded" value, on which value()
+    // and the like throw; a null is what the callers test for.
+    return j.is_discarded() ? nlohmann::json() : j;
   }
   // The "error" of a JSON error body, or "" when there is none.
   std::string error() const {
