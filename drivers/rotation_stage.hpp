@@ -115,6 +115,9 @@ class RotationStage {
   void abort() noexcept { executor_.abort(); }
 
   const StepExecutor& executor() const { return executor_; }
+  // Between moves (no thread emitting): the executor's lateness, re-ramp and
+  // slip figures start again, so a scan reports its own.
+  void resetTimingStats() noexcept { executor_.resetJitter(); }
 
  private:
   class Watch;

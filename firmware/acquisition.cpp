@@ -435,8 +435,10 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
   Shared shared(plan.frames());
   drivers::Clock& clock = board_.clock();
   const nanoseconds started = clock.now();
-  const std::int64_t reramps_before = stage_->executor().reramps();
-  const nanoseconds slip_before = stage_->executor().slip();
+  // The executor is idle between scans: its lateness figures start again so
+  // the report holds this scan's edges only (homing included), not every
+  // edge since the board was opened.
+  stage_->resetTimingStats();
   report.homed = !stage_->homed();
   {
     const SafeState safe(*stage_, *light_);
@@ -470,8 +472,8 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
   report.step_check = shared.step_check;
   report.step_jitter = stage_->executor().stepJitter().snapshot();
   report.trigger_jitter = stage_->executor().triggerJitter().snapshot();
-  report.step_reramps = stage_->executor().reramps() - reramps_before;
-  report.step_slip = stage_->executor().slip() - slip_before;
+  report.step_reramps = stage_->executor().reramps();
+  report.step_slip = stage_->executor().slip();
   if (report.step_reramps > 0) {
     report.warnings.push_back("the step executor woke late " + std::to_string(report.step_reramps) +
                               " time(s) at speed and re-ramped the stage instead of bursting the "

@@ -13,6 +13,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -418,6 +419,27 @@ TEST(Acquisition, AbortStopsTheScanSafely) {
   EXPECT_LT(seen, 50);
   EXPECT_FALSE(scan.head().lightOn());
   EXPECT_FALSE(scan.head().stage().enabled());
+}
+
+// The lateness figures of a report are its own scan's: the first scan homes
+// (more edges), the next two run the same plan from home and so time the
+// same number of step edges and triggers.
+TEST(Acquisition, EachReportTimesTheEdgesOfItsOwnScan) {
+  TempDir dir;
+  Scan scan(smallBoard(dir, kPlane));
+  Acquisition acquisition(scan.board);
+  std::vector<ScanReport> reports;
+  for (int i = 0; i < 3; ++i) {
+    PhaseSink phase(scan.plan, {});
+    reports.push_back(acquisition.run(scan.options, scan.plan, phase));
+  }
+  EXPECT_TRUE(reports[0].homed);
+  EXPECT_FALSE(reports[1].homed);
+  EXPECT_GT(reports[1].step_jitter.count, 0u);
+  EXPECT_GT(reports[0].step_jitter.count, reports[1].step_jitter.count);
+  EXPECT_EQ(reports[2].step_jitter.count, reports[1].step_jitter.count);
+  EXPECT_EQ(reports[2].trigger_jitter.count, reports[1].trigger_jitter.count);
+  EXPECT_EQ(reports[2].step_reramps, 0);
 }
 
 TEST(ScanPlan, ExactStepPositionsFromTheStartAngles) {
