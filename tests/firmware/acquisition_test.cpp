@@ -439,7 +439,6 @@ TEST(Acquisition, EachReportTimesTheEdgesOfItsOwnScan) {
   EXPECT_GT(reports[0].step_jitter.count, reports[1].step_jitter.count);
   EXPECT_EQ(reports[2].step_jitter.count, reports[1].step_jitter.count);
   EXPECT_EQ(reports[2].trigger_jitter.count, reports[1].trigger_jitter.count);
-  EXPECT_EQ(reports[2].step_reramps, 0);
 }
 
 TEST(ScanPlan, ExactStepPositionsFromTheStartAngles) {
