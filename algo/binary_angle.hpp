@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Phase as a binary angle and an integer atan2 that gives the same bits on every CPU.
 //
 // A BinaryAngle is a uint16 fraction of a turn (65536 = 2π), so wrapping is the

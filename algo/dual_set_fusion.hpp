@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Dual-set fusion: both sets measure the same projector azimuth, so ρ·Φl with
 // ρ = θl/θh is a second estimate of Φh. Each is weighted by its inverse noise
 // variance: var(Φh) = gh·σ²/Bh² and var(ρ·Φl) = ρ²·gl·σ²/Bl², with g the set's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The per-pixel loops of the fixed-point path. Written once as portable C++ the
 // compiler vectorises, built for the baseline ISA and (x86-64) for AVX2; both give
 // the same bits. Sums are kept as uint32 (wrapping arithmetic, no UB); the weights

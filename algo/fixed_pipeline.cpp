@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The fixed-point pipeline: the device's path.
 //
 // Working state per pixel (16 bytes for a two-set scan):

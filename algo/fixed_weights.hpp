@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Integer per-frame weights of one fringe set for the fixed-point path.
 //
 // C and S share one scale (atan2 is scale-invariant), chosen as large as the

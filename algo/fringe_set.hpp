@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The two fringe sets of a scan and their executed stage angles (spec §1).
 #pragma once
 

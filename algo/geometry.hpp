@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Small geometric value types shared by the calibration and metrology code:
 // a pinhole camera with OpenCV distortion, a plane and a sphere. All lengths
 // are millimetres in the frame the caller chooses (usually the main camera's).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Which instruction-set variant of the fixed-point kernels runs.
 //
 // The kernels are written once, in portable C++ that the compiler vectorises,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Sampling a float map (e.g. an absolute-phase map) between its pixels.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The phase engine: N-step least-squares phase of two fringe sets, two-wavelength
 // temporal unwrapping and dual-set fusion (spec §1; paper Eqs. 4, 6-8).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Internal: the two implementations behind PhaseEngine (fixed point and reference).
 // PhaseEngine checks arguments and the order of folds; pipelines only compute.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Phase-based stereo (the paper's SV method, the reference geometry of the
 // quasi-calibration): two calibrated cameras see the same absolute phase Φ;
 // along an epipolar line the aux position of the main pixel's phase gives the

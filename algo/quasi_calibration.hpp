@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Quasi-calibration (the paper's Eq. 10): for every pixel of the main camera,
 // X, Y and Z of the surface point as cubic polynomials of the absolute phase Φ,
 // fitted from plane poses whose points are known (ray ∩ fitted plane).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "algo/ray_plane.hpp"
 
 #include <cmath>

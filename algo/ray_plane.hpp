@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Target geometry of a calibration pose: for every main-camera pixel the
 // undistorted viewing ray, and its intersection with the pose's plane.
 #pragma once

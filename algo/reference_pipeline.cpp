@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The double-precision reference pipeline: double sums, the same least-squares
 // weights in double, std::atan2, unwrapping in radians. For tests and comparisons.
 #include <algorithm>

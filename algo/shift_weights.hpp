@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Least-squares phase-shift weights of one fringe set (spec §1).
 //
 // Frame k carries I_k = A + C cos δk + S sin δk with C = B cos φ, S = B sin φ.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Finding the spheres of a target in a point cloud: sequential RANSAC on
 // 4-point sphere hypotheses (seed point plus neighbours), each winner refined
 // by the free geometric fit of surface_fit on its inliers and removed before

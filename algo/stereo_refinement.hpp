@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Refining the stereo pair with the phase (issue 4): a checkerboard
 // calibration leaves errors of ~0.1 % in focal length and hundredths of a
 // degree in rotation, which the quasi-calibration copies into every point.

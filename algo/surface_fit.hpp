@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Metrology fits of the paper's evaluation: least-squares planes (plain and
 // robust), spheres (free radius, and fixed radius fitted by its centre) and the
 // residual statistics it reports (RMSE, signed mean, STD, regional RMSE).

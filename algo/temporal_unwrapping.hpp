@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Two-wavelength temporal phase unwrapping (paper Eqs. 6-8, spec §1 convention).
 //
 // Both sets measure the same projector azimuth and are zero at the same azimuth.

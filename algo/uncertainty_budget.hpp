@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The paper's GUM uncertainty budget of the reconstructed depth ("Measurement
 // uncertainty analysis"): five independent components combined in quadrature
 // and expanded with k = 2.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Benchmarks of the phase engine at 1000x800 with 8-bit frames, one core:
 // the fixed-point path, the double reference path, and an OpenCV float baseline
 // written the way a user would write it. Run e.g.

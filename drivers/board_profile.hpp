@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The board profile (board/<name>/board.toml): which backends drive the head,
 // where its GPIO lines are, its stage, its cameras, the acquisition defaults
 // and, for the virtual head, its model. Format: board/README.md.

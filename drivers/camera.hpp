@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Cameras behind a small interface: one backend per file (v4l2, libcamera, sim).
 #pragma once
 

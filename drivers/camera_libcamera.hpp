@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A camera through libcamera (0.3): one raw monochrome stream, manual
 // exposure and analogue gain set in every request (auto exposure off), frames
 // handed from libcamera's completion thread to waitFrame() through a bounded

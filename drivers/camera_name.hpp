@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The rule for a camera's name, on its own (no OpenCV, no TOML) so that the
 // HTTP router and the store can check names without the board profile.
 #pragma once

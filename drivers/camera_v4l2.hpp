@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A camera through the kernel's V4L2 capture API (/dev/videoN): single-planar
 // mmap streaming of monochrome formats (GREY, Y10, Y12, Y16, Y10P, Y12P),
 // manual exposure and gain through controls. V4L2 has no software trigger:

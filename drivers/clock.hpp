@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Monotonic time for the executor: the real CLOCK_MONOTONIC, or the virtual
 // head's clock, which can run as fast as the CPU allows.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real clock: CLOCK_MONOTONIC, absolute sleeps with clock_nanosleep.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // GPIO lines behind a small interface: one backend per file (gpiod, sim).
 #pragma once
 

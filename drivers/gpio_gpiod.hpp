@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // GPIO lines through the kernel's GPIO character device with libgpiod v2's
 // C++ bindings. Lines are found by name across all chips under a device
 // directory, or by chip (path, device name or label) and offset.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Finding a GPIO line from a LineSpec in the tables of the system's chips:
 // pure logic, without devices, shared by the gpiod backend and its tests.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Lateness of real-time edges (actual time after the edge minus its
 // deadline) as a fixed-bucket histogram with p50/p99/max. One thread records
 // (no allocation, no lock); any thread may take a snapshot, e.g. a daemon

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The parts of the libcamera backend that need no camera: which of
 // libcamera's pixel formats are monochrome, and clamping to control ranges.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Monochrome frames as cameras deliver them: pixel packings, the choice of a
 // format by bit depth, unpacking rows into cv::Mat, and frame sequence
 // counting. Pure logic shared by the V4L2 and libcamera backends.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Motion planning, pure (no I/O): a move of the rotation stage becomes a step
 // schedule with the exact number of step pulses and each pulse's deadline,
 // planned before anything is executed (StepExecutor emits it).

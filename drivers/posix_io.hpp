@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Owners of POSIX resources for the device backends: a file descriptor and a
 // memory mapping, each released exactly once.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A worker thread for the step/trigger executor: SCHED_FIFO at a given
 // priority and the process's memory locked (mlockall), when allowed. Without
 // the privilege (EPERM, or a memory-lock limit too low) it runs at normal

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The rotation stage as the firmware drives it: enable, homing, moves and
 // continuous sweeps planned by motion_plan and emitted by a StepExecutor on
 // the calling thread, the executed position in steps, a step-count check

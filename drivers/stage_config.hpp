@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The rotation stage as the firmware drives it: its step geometry, the motion
 // limits the planner respects, and the homing procedure. Read from the
 // [stage] section of a board profile (board/<name>/board.toml).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Emits a StepSchedule on the step/dir (and trigger) lines against a Clock
 // with absolute deadlines. The loop neither allocates nor locks (the buffer
 // of edge times is sized before it starts), can be aborted from any thread,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The parts of the V4L2 camera backend that need no device: which pixel
 // formats are monochrome, control values and their ranges, timestamps.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where the acquisition loop hands each frame as it arrives: the phase engine
 // (streaming: no scan holds its frames), the capture bundle writer, a preview.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The streaming reconstruction of a scan: one phase engine per camera, each
 // frame folded as it arrives (the engine keeps 16 bytes a pixel, not frames),
 // so a K-camera scan holds O(K × pixels).

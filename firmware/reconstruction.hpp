@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // From a scan's phase maps to its outputs, shared by `cylscan scan`,
 // `cylscan reconstruct` and the daemon: the quasi-calibration file, the
 // choice of absolute phase (fused or high), the point cloud and depth map of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The cameras' trigger as one output for the executor: a pulse on every GPIO
 // trigger line in use, and an exposure request to every software-triggered
 // camera on the rising edge (several cameras, one instant).

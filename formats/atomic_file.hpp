@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Writes that never leave a half-written file behind: write to a temporary
 // name in the same directory, fsync, rename over the target, fsync the directory.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The capture bundle, format `cylscan-capture-1` (spec §1).
 #pragma once
 

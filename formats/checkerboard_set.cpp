@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "formats/checkerboard_set.hpp"
 
 #include <algorithm>

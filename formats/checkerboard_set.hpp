@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The checkerboard set for stereo calibration (spec §2).
 #pragma once
 

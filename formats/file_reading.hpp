@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reading input files whole, with a size limit, for the format readers. Every
 // fault (missing, a directory, too large, unreadable) throws InputError naming
 // the file.

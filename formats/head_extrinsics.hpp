@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The extrinsics of a multi-camera head, `head.json` (format `cylscan-head-1`,
 // issue #10): each camera's pose in the head frame, which is the frame of the
 // camera named by "frame" (`main`), X_head = R·X_cam + T in mm.

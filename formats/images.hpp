@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Image files: 32-bit float TIFF maps and 8/16-bit PNG, written atomically.
 #pragma once
 

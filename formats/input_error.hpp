@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Bad input from outside (a file, a request): the message names the file and the fault.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Safe PNG reading: the header (signature and IHDR) is parsed and checked
 // against size limits before anything is decoded, the chunk structure is walked
 // up to IEND so a truncated file is an error, and the decoded image must match

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Point clouds (spec §4): binary little-endian PLY, float x y z in mm in the
 // main camera frame, then optional extra properties.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The stereo calibration file (spec §3): OpenCV FileStorage YAML.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // board.toml: loadBoardProfile on the input, written as board.toml in a
 // folder that also holds the virtual head's head.toml and scenes/ (linked
 // from board/sim), so profiles naming them reach the head model too. Every

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The calibration upload (PUT /api/v1/calibration/{camera}): the body as the
 // HTTP layer hands it to ScanService::installCalibration for the main camera
 // of a tiny virtual head (16×16, so a whole valid calibration is 15 KB and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // capture.json through CaptureBundleReader: the input is written as the
 // capture.json of a bundle folder that holds valid frames (6 per set, 8×6
 // 8-bit PNG, for the cameras "main" and "aux"), so a capture.json that

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan.toml: parseDaemonConfig over the defaults. Every fault must be a
 // ConfigError (toml++ syntax errors included); any other exception escaping
 // is a finding. An accepted configuration is printed back through the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The bearer-token check: bearerToken on an Authorization header value and
 // tokenEquals against a token. The input is "EXPECTED\nHEADER VALUE" (no
 // newline: the whole input is the header, checked against a fixed token).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The HTTP API's pure router: a method and a percent-decoded path. The input
 // is "METHOD\nPATH" (no newline: all of it is the path of a GET). Checks what
 // router.hpp promises: a refused or unknown path is never routed, a route is

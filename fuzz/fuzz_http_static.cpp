@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Static file confinement: a request path goes through the router and, when
 // it is a static file, openStaticFile under a web root. The root holds a few
 // files, a symlink to one of them and a symlink (and a "../" neighbour) that

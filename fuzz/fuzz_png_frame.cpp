@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // PNG frames through the bundle reader: the input is every frame of a
 // one-camera bundle (6 per set, hard links of one file) whose capture.json is
 // valid, so the reader's header checks and then readFrame's decoding see it;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The quasi-calibration file: QuasiCalibration::deserialize, the in-place
 // QuasiCalibrationView::fromBytes and firmware::readQuasiCalibration (the
 // file the daemon and the CLI load). Each input is tried as given and once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The JSON options of POST /api/v1/scans, as the HTTP layer hands them to the
 // service: a body that is only white space means {}, anything else must
 // parse as a JSON object (else 400 from the HTTP layer:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The stereo calibration file (OpenCV FileStorage YAML) through
 // readStereoCalibration, written to a .yaml file per input. Every fault must
 // be an InputError; an accepted calibration must pass its own rules again

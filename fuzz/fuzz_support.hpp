@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared pieces of the fuzz targets: a private temporary directory for the
 // process (libFuzzer runs every input in one process) and writing an input to
 // a file there, for the readers that take a path.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's ScanService on a tiny virtual head (board/sim at 16×16 pixels,
 // its scenes/ linked), made once per fuzzing process: the targets that fuzz
 // what the service validates (scan options, calibration uploads) call it

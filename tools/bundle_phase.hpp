@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared by the subcommands: the phase engine run over one camera of a capture
 // bundle, frames streamed from disk one at a time (none is kept).
 #pragma once

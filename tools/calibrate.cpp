@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan calibrate: the quasi-calibration (paper Eq. 10) from plane poses,
 // each a capture bundle with the cameras main and aux (spec §5).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan calibrate-head: the extrinsics of a multi-camera head (issue #10,
 // head.json) from ring scans of a target of spheres taken with the head on a
 // turntable. Each bundle: every calibrated camera (DIR/<camera>.qcal)

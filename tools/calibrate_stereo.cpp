@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan calibrate-stereo: the stereo calibration (spec §3) of the main and
 // aux cameras from a checkerboard set (spec §2).
 //

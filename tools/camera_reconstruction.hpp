@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared by `reconstruct --calib-dir` and `calibrate-head` (issue #10): each
 // calibrated camera of a capture bundle reconstructed with its own
 // quasi-calibration (DIR/<camera>.qcal) on its own fringe sets.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared by calibrate-stereo and refine-stereo: the checkerboard corners of a
 // checkerboard set (spec §2), found and refined in both cameras of each pair.
 #pragma once

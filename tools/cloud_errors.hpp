@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Signed distances of a reconstructed cloud's points to the true surfaces,
 // kept both as a list and on the main pixel grid (the cloud's u, v).
 #pragma once

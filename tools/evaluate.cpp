@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan evaluate plane|sphere: the paper's metrics of a point cloud (spec §5).
 //
 // plane: the least-squares (total) plane of all finite points and the RMSE of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan: calibration, simulation and offline reconstruction (spec §5).
 #include <cstdio>
 #include <exception>

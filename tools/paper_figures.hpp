@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The published figures of the paper (Choi, Kim, Hyun, "Cylindrical Mechanical
 // Projector for Omnidirectional Fringe Projection Profilometry",
 // ../shared/seed), transcribed for `cylscan study` to print beside the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan phase: absolute phase maps of one camera of a capture bundle (spec §5).
 #include <cmath>
 #include <filesystem>

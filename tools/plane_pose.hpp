@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared by calibrate and refine-stereo: one plane pose of the calibration
 // (a capture bundle with main and aux), measured the paper's way: the
 // absolute phase of both cameras, the phase-based stereo points, and a robust

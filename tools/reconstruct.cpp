@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan reconstruct: the point cloud (spec §4) of a capture bundle, by the
 // quasi-calibration of the main camera (default, --calib) or by the
 // phase-based stereo of main and aux (--method stereo --stereo, the paper's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan refine-stereo: refines a checkerboard stereo calibration with the
 // phase of the plane poses (algo/stereo_refinement.hpp): the checkerboard
 // corners fix the scale, the dense equal-phase correspondences on known planes

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Figures of `cylscan study`, drawn with OpenCV: signed error maps on the main
 // camera's pixel grid with a labelled colour bar, and overlaid histograms.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan scan: one acquisition on a board profile (spec §5): the firmware's
 // acquisition loop (firmware/acquisition.hpp) drives the stage, the trigger
 // and the cameras through the drivers, folds every frame into the phase

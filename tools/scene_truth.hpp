@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The true surfaces of a scene in a simulated dataset's truth.json (spec §6):
 // planes, spheres, boxes, and composites of them, in the main camera frame.
 // Shared by `evaluate --truth` and `study`.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Runs another `cylscan` subcommand as a child process (the same executable),
 // so each step of a longer job keeps its own command-line contract: its
 // `--json` line is parsed, and a failing step stops the job with its message.

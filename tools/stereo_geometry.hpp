@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared by the subcommands: the stereo calibration file (spec §3) as the
 // algorithms' geometry, and back.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Wall-clock timing of the steps a subcommand reports.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan study: the paper's experiments on the virtual head (issue 4).
 //
 // Simulates a dataset with the study scenes (or takes one, --dataset), then

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The numbers of `cylscan study`: the paper's experiments summarised from the
 // per-scene results of `cylscan evaluate --json` (one JSON object per scene
 // and method), and the GUM budget built from them.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // report.md of `cylscan study`: the paper's tables with its published figures
 // beside the virtual head's measurements, the truth comparisons, the issue's
 // acceptance checks and the dataset parameters.

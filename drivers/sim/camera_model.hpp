@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual cameras' optics: pinhole with radial distortion (k1, k2), pose in
 // the main camera frame, and the sensor (full well, read noise, bit depth).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A recorder of output-line edges for golden traces: every change of an
 // output line's level, with its virtual time. Recording neither allocates
 // nor locks (a buffer reserved by start()); start() and take() are called

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fixed-capacity rings for the real-time paths of the virtual head: writing
 // never allocates or locks. One writer (the thread that drives the output
 // lines), one reader.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Small geometry helpers of the virtual head (its own, shared with nothing in algo/).
 #pragma once
 

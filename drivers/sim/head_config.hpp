@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual head's physical parameters (board/sim/head.toml): projector,
 // stage, cameras, noise and the names of its GPIO lines.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Internal state of a VirtualHead shared by its GPIO lines and cameras.
 // Not part of the public API (include virtual_head.hpp).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The cylindrical mechanical projector of the paper: a light source inside a
 // rotating cylinder whose wall carries ON/OFF slots, θh on one half and θl on
 // the other. See docs/virtual-head.md for the model and its conventions.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rendering of camera frames on the virtual head. Everything that does not
 // change between frames is traced once per scene and camera (PixelGeometry);
 // a frame then only evaluates the projector's pattern at each pixel's wall

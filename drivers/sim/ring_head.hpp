@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The 360° virtual head (board/sim360): helpers to look at the whole head from
 // one of its cameras. Several cameras sit around the projector axis; each is
 // a camera of the one-direction head (board/sim's main) turned about the axis.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scenes of the virtual head: isolated objects in the main camera frame (mm),
 // each with an albedo, and an ambient light level.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The GPIO backend of the virtual head: lines found by name act on its stage,
 // cameras and light source; inputs report the home switch and the stage fault.
 #pragma once

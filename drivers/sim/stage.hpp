@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The rotation stage of the virtual head: a geared stepper that moves one
 // microstep per step pulse while enabled, loses steps when driven faster or
 // harder than its torque allows, rings after motion and has a home switch.

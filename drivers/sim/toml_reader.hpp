@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Strict reading of TOML tables for the virtual head's files (head.toml,
 // scenes): every key must be known, every value checked, and every error names
 // the file, the line and the key.

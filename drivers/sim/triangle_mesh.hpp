@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Triangle meshes for scenes: a minimal PLY reader (ascii and binary
 // little-endian) and ray intersection through a bounding-volume hierarchy.
 #pragma once

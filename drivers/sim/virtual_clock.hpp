@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual head's clock: a discrete-event clock in virtual time, or
 // (paced) the real monotonic time since the head was made.
 //

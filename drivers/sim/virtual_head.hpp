@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual scanning head: the cylindrical projector, the rotation stage,
 // the cameras and a scene, behind the same driver interfaces as the hardware
 // (drivers::GpioBackend, drivers::Camera, drivers::Clock). See docs/virtual-head.md.

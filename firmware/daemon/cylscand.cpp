@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscand: the scanning head's daemon. Reads cylscan.toml and the flags
 // (firmware/daemon/daemon_config.hpp), opens the head (ScanService) and its
 // HTTP API (HttpApi), prints

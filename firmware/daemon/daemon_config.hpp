@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's configuration: cylscan.toml (format in docs/daemon.md), the
 // command-line flags that override it, and the defaults of the virtual head
 // when there is neither.

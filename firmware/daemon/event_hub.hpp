@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Publish/subscribe of the head's events (HeadEvent): every subscriber has a
 // bounded queue; a full queue drops its oldest event (counted), so publishing
 // never blocks on a slow reader. close() ends every stream (shutdown).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What the daemon's HTTP layer sees of the head: one scan at a time, the
 // stored scans and their files, the installed calibration, live events and
 // the metrics of the real-time loop. `ScanService` (firmware/daemon/scan_service.hpp) is the

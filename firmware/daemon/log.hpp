@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's log: one line per message on stderr, "cylscand: LEVEL: text",
 // messages below the configured level dropped. Thread-safe.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Prometheus metrics (text exposition format 0.0.4): a counter, a histogram
 // with fixed upper bounds, and their rendering. Thread-safe; used by the
 // service (scans, frames, real-time lateness) and the HTTP layer (requests).

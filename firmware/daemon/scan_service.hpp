@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The head as the daemon runs it (HeadService on a drivers::Board): one
 // worker thread runs the scans one at a time through firmware::Acquisition,
 // streams the phase, reconstructs with the installed calibration and commits

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's data directory (layout in docs/daemon.md):
 //   scans/<id>/scan.json + its files   one finished (done or failed) scan
 //   scans/.partial-<id>/               a scan being written (never listed)

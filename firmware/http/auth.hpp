@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The bearer-token check of the HTTP API, without sockets.
 #pragma once
 

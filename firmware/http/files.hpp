@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Files the HTTP API sends: opened once, checked to be regular files, handed
 // to libmicrohttpd as a descriptor (it streams them with sendfile).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "firmware/http/http_api.hpp"
 
 #include <arpa/inet.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's HTTP API (docs/http-api.md) on libmicrohttpd: routes requests
 // to a HeadService, checks the bearer token, enforces the size limits, streams
 // server-sent events and serves the web page's static files. It never runs on

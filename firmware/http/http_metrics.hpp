@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The HTTP layer's own Prometheus metrics: requests by status code, the
 // time to answer them (a histogram) and the open event streams.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The HTTP API's routing, without sockets: a method and a (percent-decoded)
 // path give the endpoint and its parameters, or the error status that says
 // why there is none. Paths are exact (no trailing slash); `..`, `.`, empty

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "algo/binary_angle.hpp"
 
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Test helper: synthetic fringe frames with a known phase, I_k = A + B cos(φ − δk),
 // optional Gaussian noise (fixed seed), rounded and clamped to the bit depth.
 #pragma once

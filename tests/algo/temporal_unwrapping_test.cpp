@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "algo/temporal_unwrapping.hpp"
 
 #include <gtest/gtest.h>

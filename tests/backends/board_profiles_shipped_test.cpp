@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Every board profile the repository ships (board/*/board.toml, installed to
 // /usr/share/cylscan/board/<name>/) loads with the firmware's own loader, and
 // declares the lines and cameras its README and wiring table promise.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The hardware backends where this machine has no hardware: their failures
 // must be clear errors naming what is missing.
 #include <chrono>

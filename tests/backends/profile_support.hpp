@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers for the board-profile tests: profiles written to a temporary
 // folder, and the repository's board folders.
 #pragma once

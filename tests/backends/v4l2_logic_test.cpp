@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "drivers/v4l2_logic.hpp"
 
 #include <gtest/gtest.h>

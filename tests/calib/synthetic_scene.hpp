@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Synthetic ground truth for the calibration tests: pinhole cameras with their
 // own (test-side) undistortion, a point-source cylindrical projector whose
 // absolute phase is a known function of the 3D point, planes and spheres.

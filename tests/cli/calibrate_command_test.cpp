@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `cylscan calibrate` and `cylscan calibrate-stereo`: the bad-input and
 // failure paths (the working paths run end to end in end_to_end_test.cpp).
 #include <fstream>

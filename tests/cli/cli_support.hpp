@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers for tests that run the `cylscan` program as a user would.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The whole chain as a user runs it, on the virtual head at 320×256:
 // simulate → calibrate-stereo → calibrate → reconstruct → evaluate, checked
 // against the simulator's truth (stereo_truth.yaml, truth.json).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `cylscan evaluate plane|sphere` on clouds with a known surface and noise.
 #include <cmath>
 #include <fstream>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `cylscan phase` run as a user runs it: outputs, JSON summary, exit codes.
 #include <cmath>
 #include <fstream>

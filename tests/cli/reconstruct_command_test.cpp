@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `cylscan reconstruct`: the quasi path on a synthetic bundle with a known
 // calibration, the PLY and depth outputs, and every bad-input path.
 #include <cmath>

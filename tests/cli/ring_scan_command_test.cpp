@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `cylscan scan` on a 360° ring profile (board/sim360, small): every camera
 // of the profile is scanned, the ring layout is reported, and `cylscan phase
 // --camera NAME` gives each camera's maps from its own sets.

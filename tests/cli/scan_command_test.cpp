@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `cylscan scan` as a user runs it: one acquisition on a board profile writes
 // a capture bundle whose phase is the streamed one; bad requests exit 2.
 #include <filesystem>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `cylscan study` as a user runs it: a tiny study at 320×256 (2 poses of each,
 // 2 repetitions, no refine-stereo), its report and figures, its numbers
 // checked against `evaluate --truth` run separately on the same clouds, and

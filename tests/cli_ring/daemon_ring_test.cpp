@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's 360° outputs on the calibrated virtual head (fixture.ring_head):
 // with the four calibrations and the extrinsics installed, a ring scan's
 // cloud.ply is the merged cloud of all four cameras in the head frame and

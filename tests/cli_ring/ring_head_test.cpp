@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The 360° head's extrinsics and merged cloud, end to end on the virtual head
 // (the CTest fixture fixture.ring_head, tests/fixtures/ring_head.cmake: four
 // per-direction quasi-calibrations made as a user makes them, the turntable

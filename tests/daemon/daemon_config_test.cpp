@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan.toml and the flags of cylscand: every key read, every fault named by
 // file, line and key, flags over the file, relative paths anchored at the
 // file's folder.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The event hub's bounded queues and the Prometheus text of the metrics.
 #include <thread>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The outputs shared by cylscan scan and the daemon: cloud and depth of an
 // xyz map, and the colour-mapped previews (invalid black, valid coloured).
 #include "firmware/reconstruction.hpp"

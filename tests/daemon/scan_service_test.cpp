@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's service on a small virtual head: a scan runs to done with its
 // progress and files, one scan at a time, options checked, a failed scan is
 // recorded without losing the others, shutdown aborts a scan safely, and a

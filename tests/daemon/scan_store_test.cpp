@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The data directory: a scan appears whole or not at all, leftovers of a crash
 // are cleaned, unusable records are set aside, retention removes the oldest.
 #include "firmware/daemon/scan_store.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The error paths of the HTTP API (docs/http-api.md) on a running cylscand:
 // unknown and invalid ids, paths that try to leave the data directory, bad
 // JSON and bad options, bad and wrong-size calibrations (the installed one

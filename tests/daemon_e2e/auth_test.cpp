@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Authentication of a cylscand started with --token: every request but
 // GET /api/v1/status needs "Authorization: Bearer TOKEN"; a missing or wrong
 // token, or one in the query string, is 401 with WWW-Authenticate: Bearer and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A bad configuration is refused at start: cylscand exits 2, prints nothing
 // on stdout (no listening line) and one line on stderr naming the file, the
 // line and the key at fault.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscand as a child process of a test: started with fork/execv, its first
 // stdout line ("cylscand: listening on http://127.0.0.1:PORT (…)") read
 // with a timeout, stderr captured to a file for failure messages, stopped

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // GET /api/v1/events (server-sent events) and GET /metrics of a running
 // cylscand during and after one scan.
 #include <condition_variable>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Faults of the head under a running cylscand (issue 9, "Fault injection on
 // the virtual head"). Each test makes one good scan on the fixture's board,
 // restarts the daemon on the same data directory with a copy of the board

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A small HTTP client on libcurl for the daemon's tests: one request at a
 // time, any method, headers, a body, the status, the answer's headers
 // (names in lower case) and body. Paths are sent as given (no dot-segment

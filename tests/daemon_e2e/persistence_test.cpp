@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What survives the daemon's death: SIGKILL while a scan is written (at the
 // moment its temporary ".partial-<id>" directory appears, and at other
 // moments across the scan) and SIGTERM during a scan. After a restart on the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A cylscand on the quick head of the fixture "quick_head"
 // (tests/fixtures/quick_head.cmake): its own temporary data directory, a
 // client bound to it, and the waits the tests share.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Scans through the HTTP API of a running cylscand on the quick head
 // (320×256, calibrated by the fixture "quick_head"), checked against the
 // virtual head's truth of the board's default scene, sphere_on_plane: a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real clock: monotone, absolute sleeps that never return early, and
 // signals (EINTR) do not cut a sleep short. No timing bounds are asserted.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers for the driver tests: a small virtual head, the firmware's view of
 // its stage (StageConfig), the line specs, and an output line that counts.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Golden traces: the executor's edges on the virtual head's output lines
 // (line, level, virtual time from the start of the trace) for a short
 // trapezoid move, a homing and a short continuous sweep, compared with the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The lateness histogram: counts, percentiles from the buckets, max, the
 // overflow bucket, and snapshots taken while another thread records.
 #include <gtest/gtest.h>

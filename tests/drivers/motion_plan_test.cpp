@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The planner: exact step counts, monotone deadlines, speed and acceleration
 // within the configured trapezoid (measured from consecutive deadlines, as
 // the stage feels them), triangles for short moves, sweeps with triggers at

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The real-time worker: SCHED_FIFO and locked memory when the machine allows,
 // a warning and normal priority when it does not (forced here by dropping
 // the privilege in a child process), exceptions carried to join(), and a

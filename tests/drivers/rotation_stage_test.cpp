@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The stage controller on the virtual head: homing finds the head's zero,
 // moves execute exactly, lost steps (injected, or from driving the stage
 // faster than it can follow) are caught by the step-count check, a home

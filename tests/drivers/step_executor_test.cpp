@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The executor against the virtual head: the stage executes exactly the
 // planned steps, edges land on their deadlines in virtual time, the lines
 // are left low, abort and stop conditions end a run at a step boundary, and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The acquisition's two threads under the virtual clock: the executor on a
 // real-time thread runs a continuous sweep with triggers while a capture
 // thread waits for both cameras' frames. Every frame arrives, in sequence,

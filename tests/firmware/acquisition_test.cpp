@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The acquisition loop on the virtual head, driven through the board's driver
 // interfaces like hardware: the phase it streams is the head's geometry, the
 // bundle it saves gives the same phase offline, continuous mode agrees with

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The ring acquisition of the 360° head (issue #10) on a small copy of the
 // virtual head board/sim360 (four cameras, main turned by 0/90/180/270° about
 // the projector axis): every camera gets both sets, each in the role the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The ring planner of the 360° head (issue #10): every camera's working volume
 // inside one equivalent period at its sets' first frames and off the half
 // boundaries during its sweeps; a common frame step whose shifts are well

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The capture bundle's "camera_sets" extension (a ring scan's cameras, each
 // with its own sets): written and read back per camera, validated like the
 // top-level sets, and old bundles read exactly as before.

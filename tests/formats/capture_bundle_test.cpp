@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "formats/capture_bundle.hpp"
 
 #include <opencv2/imgcodecs.hpp>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The merged cloud of several cameras (issue #10): a uchar `camera` property
 // and `comment camera <i> <name>` lines.
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Shared helpers of the formats tests: a temporary directory per test, file
 // helpers, a checker for InputError, and hand-made PNG bytes.
 #pragma once

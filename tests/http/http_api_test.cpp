@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // HttpApi on 127.0.0.1 (port 0) against a scripted HeadService, with libcurl
 // and raw sockets: routes and codes, auth, limits, paths, static files.
 #include "firmware/http/http_api.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Test support of the HTTP layer's tests: a scripted HeadService (the HTTP
 // layer is tested alone; the real service is tested end to end in
 // tests/daemon_e2e), a libcurl client and raw sockets for the requests no

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The HTTP layer's pure parts: routing, the token check, content types and
 // the metrics text, without sockets.
 #include <arpa/inet.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // GET /api/v1/events: events in order with ids, keepalives, dropped
 // clients, the cap on streams, many idle streams, and the end at shutdown.
 #include <dirent.h>

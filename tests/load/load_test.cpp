@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Load on the daemon while a scan runs on the virtual head paced to real
 // time (issue 9, "Load"; CTest label `load`; figures in docs/robustness.md).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // cylscan_bit_identity: digests of what the device computes from a scan — the
 // fixed-point phase path (CompactPhase and PhaseMaps), the reconstruction
 // (quasi-calibration evaluation to XYZ and depth) and the calibration file's

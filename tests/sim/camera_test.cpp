@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual cameras behind drivers::Camera: triggers, exposure at the stage
 // angle of the moment, sequence numbers, software trigger, timeouts and the
 // fault-injection hooks.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The rendered checkerboards are found by OpenCV, at their true corners.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Same seed, same bytes (whatever the thread count); another seed, other noise.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The [faults] table of a head file (drivers/sim/head_config.hpp) and the
 // stage model's scheduled faults behind it: a lost step after a count of
 // pulses, a home switch that never fires.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual head's files: board/sim/head.toml, scene files and PLY meshes.
 #include <gtest/gtest.h>
 

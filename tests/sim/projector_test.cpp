@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The cylindrical projector: slots, blur, conventions and imperfections.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Rendered fringes lie where the geometry says: the phase measured from the
 // frames with an independent least-squares fit matches the analytic wall
 // angle of each pixel's surface point, with the sign convention of spec §1:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The 360° virtual head (board/sim360, drivers/sim/ring_head.hpp): its cameras
 // are main turned about the projector axis, the board profile's azimuth ranges
 // contain the cameras' working volumes, the head re-expressed in a camera's

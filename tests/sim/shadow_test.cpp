@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Projector shadows and camera occlusion: a sphere in front of a plane.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers for the virtual-head tests: a small-resolution head, a line driver,
 // and an independent least-squares phase (not algo/: the tests check the
 // virtual head against geometry, nothing else).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The rotation stage behind the GPIO backend: step counting, direction,
 // enable, lost steps, the home switch and the fault line, driven with the
 // virtual clock like firmware would.

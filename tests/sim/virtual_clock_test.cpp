@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The virtual clock with several threads: time moves only when every
 // attached thread waits, to the earliest deadline; a device event wakes a
 // waiting thread before time moves on; detaching never deadlocks; threads

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A small 360° virtual head as a board profile folder, for tests of ring
 // scans (the acquisition loop, `cylscan scan`): board/sim360 (four cameras,
 // main turned by 0/90/180/270° about the projector axis) at 160×128.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A small virtual head as a board profile folder, for tests of what runs on
 // boards (the acquisition loop, `cylscan scan`).
 #pragma once

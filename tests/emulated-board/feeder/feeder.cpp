@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The emulated board's mechanics and optics (tests/emulated-board): a test
 // tool that runs in the guest beside the firmware, which sees only real
 // kernel devices.
