@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Read by cpack when it runs (CPACK_PROJECT_CONFIG_FILE), for a cross package
 # only: dpkg-shlibdeps, which cpack runs, takes the target's architecture and
 # the sysroot's dpkg database (toolchain/sysroot-dpkg-db.sh) from its environment.

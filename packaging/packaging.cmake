@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Install rules for what the package puts on the target besides the programs
 # (board profiles, the root filesystem overlay) and the CPack configuration of
 # the Debian package cylscan_<version>_<arch>.deb:

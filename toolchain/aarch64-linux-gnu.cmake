@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Cross-building cylscan for 64-bit ARM (Debian arm64) with Debian's
 # g++-aarch64-linux-gnu and a sysroot from toolchain/make-sysroot.sh:
 #   cmake --preset aarch64          (CYLSCAN_SYSROOT: the sysroot, see CMakePresets.json)

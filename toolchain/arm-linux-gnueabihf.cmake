@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Cross-building cylscan for 32-bit ARM with hardware floating point (Debian
 # armhf) with Debian's g++-arm-linux-gnueabihf and a sysroot from
 # toolchain/make-sysroot.sh:

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Shared by toolchain/aarch64-linux-gnu.cmake and toolchain/arm-linux-gnueabihf.cmake,
 # which set CYLSCAN_CROSS_TRIPLET, CYLSCAN_CROSS_ARCH (make-sysroot's name) and
 # CYLSCAN_CROSS_QEMU before including it.
