@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Cross-builds cylscan for an ARM target and runs, under qemu-user, the test
 # suites that prove the target computes the same bits as the host:
 #   scripts/cross-test.sh [aarch64|armhf]        (default aarch64)

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The main job: install, build, calibrate the virtual head the way the paper
 # calibrates a real one, then start the daemon cylscand on it with the
 # calibration installed, so that http://127.0.0.1:8080 shows the head's page

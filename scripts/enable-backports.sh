@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Adds Debian bookworm-backports to apt's sources (deb822, like the system's
 # own) unless some source already names the suite, and updates apt's lists
 # when it did. Used by scripts/install-deps.sh (libgpiod 2, libcamera 0.3)

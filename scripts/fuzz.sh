@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Bounded fuzzing of every parser of outside input: scripts/fuzz.sh [SECONDS] [TARGET...]
 # Builds the libFuzzer targets of fuzz/ with clang (ASan + UBSan, build/fuzz),
 # then runs each (default: all) for SECONDS (default 20) over a copy of its

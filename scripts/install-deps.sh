@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Installs everything cylscan needs to build and test on Debian bookworm (amd64).
 # Idempotent; needs root (or sudo).
 set -euo pipefail

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Static analysis: cppcheck and clang-tidy over the project's own sources
 # (algo, formats, drivers, firmware, tools), with the compile commands of the
 # default build (configured here if missing). Checks: .clang-tidy; cppcheck's

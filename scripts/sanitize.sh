@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Sanitized test runs: scripts/sanitize.sh [asan|tsan|all] (default all).
 #   asan  AddressSanitizer + UndefinedBehaviorSanitizer, the whole suite
 #         except the package test (preset "asan", build/asan)

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The test command (README; .ci/run runs it): installs what the build needs,
 # builds, and runs every check, each stage even when an earlier one failed:
 #   1. the whole suite through CTest (Release, with tests and benchmarks):

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Installs what cross-building cylscan for ARM needs on a Debian bookworm host:
 # Debian's cross compilers (arm64 and armhf), qemu-user to run the ARM test
 # programs, mmdebstrap to make the target's sysroot (toolchain/make-sysroot.sh).

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Makes a Debian bookworm sysroot for cross-building cylscan:
 #   toolchain/make-sysroot.sh aarch64|armhf DIR
 # The target's -dev packages (and what they depend on) are unpacked into DIR

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Registers the packages unpacked into a sysroot in a dpkg database of its own
 # (SYSROOT/.cylscan-dpkg), so that the host's dpkg-shlibdeps can say which
 # target packages a cross-built binary needs, from their shlibs and symbols

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Sourced by guest.sh: the scans. cylscand, the installed arm64 daemon,
 # runs under the package's hardened systemd unit with the board profile
 # /etc/cylscan/cylscan.toml names (board/qemu-virt): it drives the gpio-sim

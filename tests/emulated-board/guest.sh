@@ -1,4 +1,5 @@
 #!/bin/busybox sh
+# SPDX-License-Identifier: Apache-2.0
 # Runs in the emulated board as a systemd service (emulated-board.service,
 # started by the boot target emulated-board.target; run.sh boots the guest):
 # sets up gpio-sim with the lines of board/qemu-virt/board.toml and vivid

@@ -1,4 +1,5 @@
 #!/bin/sh
+# SPDX-License-Identifier: Apache-2.0
 # The in-process twin of the emulated board: board/qemu-virt's profile (the
 # same stage, motion and scan) with its camera on the virtual head of
 # tests/emulated-board/head.toml, which the feeder renders in the guest.

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # The amd64 Debian package, end to end (CTest: packaging.deb, label packaging):
 #   tests/packaging/package_test.sh BUILD_DIR
 # 1. builds it (cpack -G DEB in BUILD_DIR, which builds what is missing first);
