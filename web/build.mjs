@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Bundles the page: SRC/index.html, SRC/main.js (with three.js and the CSS it
 // imports) into OUT/index.html, OUT/assets/app.js, OUT/assets/app.css. The
 // page loads nothing from elsewhere.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Browser test of the page cylscand serves: starts the daemon on the quick
 // fixture board, installs the fixture's calibration, opens the page in
 // Debian's chromium (driven by playwright-core, no browser download), clicks

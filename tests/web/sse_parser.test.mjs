@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Unit test of the page's text/event-stream parser (web/src/events.js):
 // the daemon's events must come out whole however the stream is chunked.
 //   CYLSCAN_WEB_SRC=web/src node --test tests/web/sse_parser.test.mjs

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Requests to cylscand's API (docs/http-api.md), same origin, with the
 // bearer token of this tab when the head asks for one.
 

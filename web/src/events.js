@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The daemon's live events (GET /api/v1/events) read with fetch() and a
 // stream parser rather than EventSource, so that the Authorization header
 // can be sent. Reconnects with exponential backoff and Last-Event-ID.

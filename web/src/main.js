@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The page of cylscand: head status, the Scan button, live progress, the
 // stored scans and, for the selected one, its previews and point cloud.
 
