@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// The two fringe sets of a scan and their executed stage angles (spec §1).
+// The two fringe sets of a scan and their executed stage angles (docs/formats.md,
+// capture bundle).
 #pragma once
 
 #include <string_view>

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The phase engine: N-step least-squares phase of two fringe sets, two-wavelength
-// temporal unwrapping and dual-set fusion (spec §1; paper Eqs. 4, 6-8).
+// temporal unwrapping and dual-set fusion (model: docs/formats.md, capture
+// bundle; paper Eqs. 4, 6-8).
 //
 // Frames are folded one at a time into a small per-pixel state; finalize() turns it
 // into phase maps. The default fixed-point path is the one the device runs: integer

@@ -28,7 +28,8 @@
 
 namespace cylscan::algo {
 
-// The stereo pair of spec §3: X_aux = rotation·X_main + translation (mm).
+// The stereo pair of docs/formats.md, stereo calibration file:
+// X_aux = rotation·X_main + translation (mm).
 struct StereoGeometry {
   PinholeCamera main;
   PinholeCamera aux;

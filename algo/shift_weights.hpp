@@ -1,11 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-// Least-squares phase-shift weights of one fringe set (spec §1).
+// Least-squares phase-shift weights of one fringe set (docs/formats.md, capture
+// bundle: the intensity model).
 //
 // Frame k carries I_k = A + C cos δk + S sin δk with C = B cos φ, S = B sin φ.
 // With rows r_k = [1, cos δk, sin δk] and the normal matrix M = Σ r_k r_kᵀ (the
 // same for every pixel), the per-frame weights w_k = M⁻¹ r_k give
 // (A, C, S) = Σ_k w_k I_k. For N equal shifts over one period this is the
-// paper's Eq. (4) in the sign convention of the spec's model.
+// paper's Eq. (4) in the sign convention of the bundle's intensity model.
 #pragma once
 
 #include <cstddef>

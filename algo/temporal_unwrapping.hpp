@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// Two-wavelength temporal phase unwrapping (paper Eqs. 6-8, spec §1 convention).
+// Two-wavelength temporal phase unwrapping (paper Eqs. 6-8, in the phase
+// convention of docs/formats.md, capture bundle).
 //
 // Both sets measure the same projector azimuth and are zero at the same azimuth.
 // With φeq = (φh − φl) mod 2π and the ratio R = λeq/λh = θl/(θl − θh),

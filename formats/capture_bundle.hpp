@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// The capture bundle, format `cylscan-capture-1` (spec §1).
+// The capture bundle, format `cylscan-capture-1` (docs/formats.md, capture
+// bundle).
 #pragma once
 
 #include <array>
@@ -38,8 +39,8 @@ struct CaptureInfo {
   std::vector<std::string> cameras;  // "main" first; "aux" for calibration bundles
   FringeSetInfo high;                // the top-level sets: main's
   FringeSetInfo low;
-  // Extension (spec §1 readers ignore it): the cameras whose sets are not the
-  // top-level ones, in capture.json as
+  // Extension (a reader that does not know it ignores it, like any unknown
+  // field): the cameras whose sets are not the top-level ones, in capture.json as
   //   "camera_sets": {"cam90": {"high": {"period_deg", "stage_deg"}, "low": {...}}}.
   // Every key is a camera of `cameras` other than "main" (whose sets are the
   // top-level ones); each has both sets. Extras inside those

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The checkerboard set for stereo calibration (spec §2).
+// The checkerboard set for stereo calibration (docs/formats.md, checkerboard set).
 #pragma once
 
 #include <filesystem>

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // The extrinsics of a multi-camera head, `head.json` (format `cylscan-head-1`,
-// issue #10): each camera's pose in the head frame, which is the frame of the
-// camera named by "frame" (`main`), X_head = R·X_cam + T in mm.
+// docs/formats.md, head extrinsics): each camera's pose in the head frame,
+// which is the frame of the camera named by "frame" (`main`),
+// X_head = R·X_cam + T in mm.
 //
 //   {"format": "cylscan-head-1", "frame": "main", "method": "turntable",
 //    "cameras": {"main": {"R": [[1,0,0],[0,1,0],[0,0,1]], "T": [0,0,0]},

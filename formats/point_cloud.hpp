@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// Point clouds (spec §4): binary little-endian PLY, float x y z in mm in the
-// main camera frame, then optional extra properties.
+// Point clouds (docs/formats.md, point clouds): binary little-endian PLY,
+// float x y z in mm in the main camera frame, then optional extra properties.
 #pragma once
 
 #include <cstdint>
@@ -23,13 +23,13 @@ struct PointCloud {
   // integers 0..255. readPly sets UInt8 for uchar/uint8 properties.
   std::vector<PlyScalar> property_types;
   // Header comment lines, without the "comment " keyword (single lines of
-  // printable text), e.g. "camera 0 main" (the merged 360° cloud, issue #10).
+  // printable text), e.g. "camera 0 main" (the merged 360° cloud).
   std::vector<std::string> comments;
 
   std::size_t size() const { return xyz.size() / 3; }
 };
 
-// The merged cloud of several cameras (issue #10): a `uchar camera` property
+// The merged cloud of several cameras (a 360° head): a `uchar camera` property
 // holding each point's index into the camera list, named by the header lines
 // `comment camera <index> <name>`.
 inline constexpr std::string_view kCameraProperty = "camera";

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// The stereo calibration file (spec §3): OpenCV FileStorage YAML.
+// The stereo calibration file (docs/formats.md, stereo calibration file):
+// OpenCV FileStorage YAML.
 #pragma once
 
 #include <filesystem>

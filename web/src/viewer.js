@@ -1,5 +1,6 @@
-// The point-cloud viewer: a binary PLY (spec §4: float x y z in mm in the
-// main camera frame, OpenCV axes, then extra properties such as intensity)
+// The point-cloud viewer: a binary PLY (docs/formats.md, point clouds: float
+// x y z in mm in the main camera frame, OpenCV axes, then extra properties
+// such as intensity)
 // drawn as points with three.js, orbit controls, coloured by intensity or depth,
 // or — the merged cloud of a 360° head, with a `camera` property named by
 // `comment camera <index> <name>` header lines — by camera.
