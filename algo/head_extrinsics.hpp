@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The extrinsics of a multi-camera head (issue #10): each camera's pose in the
+// The extrinsics of a multi-camera head (head.json): each camera's pose in the
 // head frame (= the `main` camera's frame), measured with the head on a
 // turntable and a target of a few spheres standing still in the room.
 //

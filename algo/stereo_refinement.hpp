@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Refining the stereo pair with the phase (issue 4): a checkerboard
+// Refining the stereo pair with the phase: a checkerboard
 // calibration leaves errors of ~0.1 % in focal length and hundredths of a
 // degree in rotation, which the quasi-calibration copies into every point.
 // The plane poses carry far denser and more precise correspondences: at every

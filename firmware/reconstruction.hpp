@@ -41,7 +41,7 @@ algo::QuasiCalibration readQuasiCalibration(const std::filesystem::path& file);
 // the properties intensity (from `texture`, CV_32F counts), u and v.
 formats::PointCloud cloudOfMaps(const cv::Mat& xyz, const cv::Mat& texture);
 
-// ---------------------------------------------------------------- 360° head (issue #10)
+// ---------------------------------------------------------------- 360° head
 
 // One camera's cloud in its own frame (cloudOfMaps of its xyz map).
 struct CameraCloud {
@@ -52,9 +52,10 @@ struct CameraCloud {
 // X ← R·X + T for every point of the cloud (its extra properties unchanged).
 void transformCloud(formats::PointCloud& cloud, const formats::CameraPose& pose);
 
-// The merged cloud in the head frame (= main's, spec §4): each camera's cloud
-// mapped by its pose in `head`, appended in the order of `clouds` with its
-// index in a uchar `camera` property and a `comment camera <i> <name>` line.
+// The merged cloud in the head frame (= main's, so a cloud as docs/formats.md,
+// point clouds, describes it): each camera's cloud mapped by its pose in
+// `head`, appended in the order of `clouds` with its index in a uchar `camera`
+// property and a `comment camera <i> <name>` line.
 // `head` may be null only when the clouds are one camera's, which must then be
 // the head frame's camera (`main`); std::invalid_argument naming the camera
 // otherwise, and when a camera has no pose in `head`.

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // cylscan calibrate: the quasi-calibration (paper Eq. 10) from plane poses,
-// each a capture bundle with the cameras main and aux (spec §5).
+// each a capture bundle with the cameras main and aux (docs/formats.md,
+// command line).
 //
 // For each pose: the absolute phase of main and aux (the phase engine), the
 // phase-based stereo points (PhaseStereo, main camera frame), a robust plane
@@ -210,7 +211,8 @@ void addCalibrateCommand(CLI::App& app) {
       app.add_subcommand("calibrate", "quasi-calibration from plane poses (bundles with main+aux)");
   cmd->add_option("bundles", request->bundles, "calibration bundles, one per plane pose")
       ->required();
-  cmd->add_option("--stereo", request->stereo, "stereo calibration file (spec §3)")->required();
+  cmd->add_option("--stereo", request->stereo, "stereo calibration file (docs/formats.md)")
+      ->required();
   cmd->add_option("--out", request->out, "calibration file to write")->required();
   cmd->add_option("--phase", request->phase, "absolute phase to model: fused (default) or high")
       ->check(CLI::IsMember({"high", "fused"}));

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// cylscan calibrate-head: the extrinsics of a multi-camera head (issue #10,
-// head.json) from ring scans of a target of spheres taken with the head on a
+// cylscan calibrate-head: the extrinsics of a multi-camera head (head.json,
+// docs/formats.md) from ring scans of a target of spheres taken with the head on a
 // turntable. Each bundle: every calibrated camera (DIR/<camera>.qcal)
 // reconstructed on its own sets, the target's spheres found by RANSAC
 // (algo/sphere_search); a camera that sees all of them gives a view at the

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// cylscan calibrate-stereo: the stereo calibration (spec §3) of the main and
-// aux cameras from a checkerboard set (spec §2).
+// cylscan calibrate-stereo: the stereo calibration file of the main and aux
+// cameras from a checkerboard set (both in docs/formats.md).
 //
 // Corners: cv::findChessboardCorners (adaptive threshold, normalised image),
 // then cv::cornerSubPix with a window sized to the board's squares. Each
@@ -329,8 +329,10 @@ void addCalibrateStereoCommand(CLI::App& app) {
   auto request = std::make_shared<CalibrateStereoRequest>();
   CLI::App* cmd = app.add_subcommand("calibrate-stereo",
                                      "stereo calibration of main and aux from a checkerboard set");
-  cmd->add_option("--board", request->board, "checkerboard set directory (spec §2)")->required();
-  cmd->add_option("--out", request->out, "stereo calibration file to write (spec §3)")->required();
+  cmd->add_option("--board", request->board, "checkerboard set directory (docs/formats.md)")
+      ->required();
+  cmd->add_option("--out", request->out, "stereo calibration file to write (docs/formats.md)")
+      ->required();
   cmd->add_option("--min-pairs", request->min_pairs, "usable pairs needed (default 6)")
       ->check(CLI::Range(3, 10000));
   cmd->add_option("--model", request->model,

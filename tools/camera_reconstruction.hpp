@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Shared by `reconstruct --calib-dir` and `calibrate-head` (issue #10): each
+// Shared by `reconstruct --calib-dir` and `calibrate-head` (the 360° head): each
 // calibrated camera of a capture bundle reconstructed with its own
 // quasi-calibration (DIR/<camera>.qcal) on its own fringe sets.
 #pragma once

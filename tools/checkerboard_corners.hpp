@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Shared by calibrate-stereo and refine-stereo: the checkerboard corners of a
-// checkerboard set (spec §2), found and refined in both cameras of each pair.
+// checkerboard set (docs/formats.md, checkerboard set), found and refined in
+// both cameras of each pair.
 #pragma once
 
 #include <string>

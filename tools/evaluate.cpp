@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// cylscan evaluate plane|sphere: the paper's metrics of a point cloud (spec §5).
+// cylscan evaluate plane|sphere: the paper's metrics of a point cloud
+// (docs/formats.md, command line).
 //
 // plane: the least-squares (total) plane of all finite points and the RMSE of
 // their distances; when the cloud has a `u` property (as reconstruct writes),
@@ -38,7 +39,7 @@ namespace fs = std::filesystem;
 struct EvaluateRequest {
   std::string cloud;
   double radius = 0;
-  std::string truth;  // truth.json of a simulated dataset (spec §6)
+  std::string truth;  // truth.json of a simulated dataset (docs/formats.md)
   std::string scene;  // the scene of the cloud in it
   bool json = false;
 };

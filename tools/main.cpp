@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// cylscan: calibration, simulation and offline reconstruction (spec §5).
+// cylscan: calibration, simulation and offline reconstruction (docs/formats.md,
+// command line: exit status 0, 2 bad input, 1 other failures).
 #include <cstdio>
 #include <exception>
 #include <iostream>

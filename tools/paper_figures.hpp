@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The published figures of the paper (Choi, Kim, Hyun, "Cylindrical Mechanical
-// Projector for Omnidirectional Fringe Projection Profilometry",
-// ../shared/seed), transcribed for `cylscan study` to print beside the
+// Projector for Omnidirectional Fringe Projection Profilometry"),
+// transcribed for `cylscan study` to print beside the
 // virtual head's. "Proposed" is the paper's quasi-calibrated single-camera
 // method, "SV" its phase-based stereo reference. mm unless said otherwise.
 #pragma once

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// cylscan phase: absolute phase maps of one camera of a capture bundle (spec §5).
+// cylscan phase: absolute phase maps of one camera of a capture bundle
+// (docs/formats.md, command line).
 #include <cmath>
 #include <filesystem>
 #include <iostream>

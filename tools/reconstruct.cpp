@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-// cylscan reconstruct: the point cloud (spec §4) of a capture bundle, by the
-// quasi-calibration of the main camera (default, --calib) or by the
-// phase-based stereo of main and aux (--method stereo --stereo, the paper's
-// SV method, for comparison). Both write the same PLY layout: x y z (mm, main
-// camera frame), intensity (the texture, counts), u v (the main pixel).
-// With --calib-dir (the 360° head, issue #10): every calibrated camera of the
-// bundle on its own sets, merged into the head frame by --head head.json, with
-// a uchar `camera` property (comment lines name the cameras).
+// cylscan reconstruct: the point cloud (docs/formats.md, point clouds) of a
+// capture bundle, by the quasi-calibration of the main camera (default,
+// --calib) or by the phase-based stereo of main and aux (--method stereo
+// --stereo, the paper's SV method, for comparison). Both write the same PLY
+// layout: x y z (mm, main camera frame), intensity (the texture, counts), u v
+// (the main pixel). With --calib-dir (the 360° head): every calibrated camera
+// of the bundle on its own sets, merged into the head frame by --head
+// head.json, with a uchar `camera` property (comment lines name the cameras).
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -51,7 +51,7 @@ struct ReconstructRequest {
   std::string depth;
   std::string phase;  // empty: the calibration's own (quasi), fused (stereo)
   bool json = false;
-  // The 360° head (issue #10): every camera with DIR/<camera>.qcal, merged in
+  // The 360° head: every camera with DIR/<camera>.qcal, merged in
   // the head frame by head.json; optionally each camera's own cloud.
   std::string calib_dir;
   std::string head;

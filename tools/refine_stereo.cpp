@@ -2,7 +2,8 @@
 // cylscan refine-stereo: refines a checkerboard stereo calibration with the
 // phase of the plane poses (algo/stereo_refinement.hpp): the checkerboard
 // corners fix the scale, the dense equal-phase correspondences on known planes
-// fix the rest. Writes a stereo calibration file (spec §3) for `calibrate`.
+// fix the rest. Writes a stereo calibration file (docs/formats.md) for
+// `calibrate`.
 //
 // With --truth (the virtual head's stereo_truth.yaml) it also reports how far
 // the initial and the refined calibrations are from the truth.
@@ -212,8 +213,10 @@ void addRefineStereoCommand(CLI::App& app) {
       "refine-stereo", "refine a stereo calibration with the phase of plane poses (main+aux)");
   cmd->add_option("bundles", request->bundles, "calibration bundles, one per plane pose")
       ->required();
-  cmd->add_option("--stereo", request->stereo, "initial stereo calibration (spec §3)")->required();
-  cmd->add_option("--board", request->board, "the checkerboard set it was made from (spec §2)")
+  cmd->add_option("--stereo", request->stereo, "initial stereo calibration (docs/formats.md)")
+      ->required();
+  cmd->add_option("--board", request->board,
+                  "the checkerboard set it was made from (docs/formats.md)")
       ->required();
   cmd->add_option("--out", request->out, "refined stereo calibration to write")->required();
   cmd->add_option("--model", request->model,

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-// cylscan scan: one acquisition on a board profile (spec §5): the firmware's
-// acquisition loop (firmware/acquisition.hpp) drives the stage, the trigger
-// and the cameras through the drivers, folds every frame into the phase
-// engine as it arrives, and writes the capture bundle (executed angles); with
+// cylscan scan: one acquisition on a board profile (docs/formats.md, command
+// line): the firmware's acquisition loop (firmware/acquisition.hpp) drives
+// the stage, the trigger and the cameras through the drivers, folds every
+// frame into the phase engine as it arrives, and writes the capture bundle
+// (executed angles); with
 // --calib and --cloud it also reconstructs on the fly (main's cloud). With a
 // ring profile ([scan] plan = "ring", e.g. board/sim360) every camera of the
 // profile is scanned and the bundle holds each camera's own sets.

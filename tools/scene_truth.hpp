@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// The true surfaces of a scene in a simulated dataset's truth.json (spec §6):
-// planes, spheres, boxes, and composites of them, in the main camera frame.
+// The true surfaces of a scene in a simulated dataset's truth.json
+// (docs/formats.md, simulated dataset): planes, spheres, boxes, and
+// composites of them, in the main camera frame.
 // Shared by `evaluate --truth` and `study`.
 #pragma once
 

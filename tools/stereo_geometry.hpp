@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// Shared by the subcommands: the stereo calibration file (spec §3) as the
-// algorithms' geometry, and back.
+// Shared by the subcommands: the stereo calibration file (docs/formats.md,
+// stereo calibration file) as the algorithms' geometry, and back.
 #pragma once
 
 #include <filesystem>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// cylscan study: the paper's experiments on the virtual head (issue 4).
+// cylscan study: the paper's experiments on the virtual head (docs/validation.md).
 //
 // Simulates a dataset with the study scenes (or takes one, --dataset), then
 // runs the chain, each step as its own `cylscan` subcommand (the same
@@ -9,7 +9,7 @@
 // the SV method (the study scenes are rendered with main and aux, so SV runs
 // on the very frames of the quasi methods); evaluate each cloud against
 // R = 50 / its fitted plane and against the truth. It then summarises the
-// paper's tables, the GUM budget and the acceptance checks of the issue into
+// paper's tables, the GUM budget and the acceptance checks into
 // DIR/report.md, DIR/results.json and PNG figures. A failing step stops the
 // study with that step's message.
 #include <sys/utsname.h>

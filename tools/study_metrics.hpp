@@ -59,7 +59,7 @@ nlohmann::json uncertaintyBudget(const nlohmann::json& sphere_repeatability,
                                  const nlohmann::json& sphere_reproducibility,
                                  const nlohmann::json& calibration, const BudgetSources& sources);
 
-// The acceptance checks from the study's results ("methods" with
+// The acceptance checks (the study's pass/fail bounds) from its results ("methods" with
 // "paper" and "ours"): [{check, measured, pass}].
 nlohmann::json acceptanceChecks(const nlohmann::json& results);
 

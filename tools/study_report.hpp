@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // report.md of `cylscan study`: the paper's tables with its published figures
-// beside the virtual head's measurements, the truth comparisons, the issue's
+// beside the virtual head's measurements, the truth comparisons, the
 // acceptance checks and the dataset parameters.
 #pragma once
 

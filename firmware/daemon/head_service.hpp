@@ -96,7 +96,7 @@ class HeadService {
   virtual nlohmann::json calibrationInfo(std::string_view camera) const = 0;
   virtual std::optional<std::filesystem::path> calibrationFile(std::string_view camera) const = 0;
 
-  // The 360° head (issue #10). PUT /api/v1/head: validates head.json's text
+  // The 360° head (docs/http-api.md). PUT /api/v1/head: validates head.json's text
   // (format, rotations; the cameras named must be the board's, the frame
   // main) and installs it atomically. ServiceError 400/422. Returns headInfo().
   virtual nlohmann::json installHead(std::string_view /*text*/) {
