@@ -53,7 +53,7 @@ if [ "$ring" -eq 1 ]; then
   fi
   board="$out/board"
 elif [ ! -f "$out/calib.bin" ]; then
-  echo "== simulate: the virtual head renders its calibration data (spec §6)"
+  echo "== simulate: the virtual head renders its calibration data (docs/formats.md, simulated dataset)"
   rm -rf "$data"
   $cylscan simulate --out "$data" --boards 40
   echo "== calibrate-stereo: the checkerboard pairs of the main and aux cameras"

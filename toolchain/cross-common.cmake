@@ -48,7 +48,7 @@ set(ENV{PKG_CONFIG_PATH} "")
 
 # qemu-user with -L at the same sysroot: the target's loader with the target's
 # libc (pairing the cross toolchain's loader with another libc hangs programs
-# that fork: ../shared/notes).
+# that fork, and libcamera's tracing forks before main).
 find_program(CYLSCAN_QEMU_USER ${CYLSCAN_CROSS_QEMU})
 if(CYLSCAN_QEMU_USER)
   set(CMAKE_CROSSCOMPILING_EMULATOR "${CYLSCAN_QEMU_USER};-L;${CYLSCAN_SYSROOT}")

@@ -89,7 +89,7 @@ const std::map<std::string, Expected>& shipped() {
         CameraBackendKind::V4l2,
         TriggerMode::FreeRunning,
         "/dev/video0"}},
-      // The gpio-sim line names of the emulated board (issue "Emulated board").
+      // The gpio-sim line names of the emulated board (docs/emulated-board.md).
       {"qemu-virt",
        {{{"step", "step"},
          {"dir", "dir"},

@@ -92,7 +92,7 @@ struct Scene {
   }
 };
 
-// The checkerboard-calibration-like errors of the issue: ~0.1–0.3 % focal,
+// Errors like those a checkerboard calibration leaves: ~0.1–0.3 % focal,
 // a pixel or two of principal point, hundredths of a degree of rotation.
 StereoGeometry perturbed(const StereoGeometry& truth) {
   StereoGeometry g = truth;

@@ -181,7 +181,8 @@ TEST_F(RingHead, MergedSurroundCloudPlacesEverySphere) {
               << fit.sphere.radius << " mm, centre error " << centre_error << " mm, rmse "
               << fit.rmse << " mm\n";
     // The radius is the camera's own calibration (the extrinsics are rigid):
-    // board/sim's quick head gives 50 mm spheres within ~0.05 mm (spec §6).
+    // board/sim's quick head gives 50 mm spheres within ~0.05 mm (the test
+    // scenes of docs/formats.md, simulated dataset).
     EXPECT_NEAR(fit.sphere.radius, radius, 0.05);
     // The centre: the per-direction calibration's absolute placement (~1 mm,
     // see the pose test), carried into the head frame by the extrinsics.

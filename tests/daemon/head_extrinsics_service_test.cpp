@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The daemon's 360° head (issue #10) on a small ring board: head.json is
+// The daemon's 360° head on a small ring board: head.json is
 // validated against the board before it is installed, survives a restart, and
 // the status lists the cameras; a ring scan lists every camera with the
 // reason its cloud is missing.

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Security of the endpoint on a running cylscand (issue 9), the parts the
+// Security of the endpoint on a running cylscand (docs/robustness.md), the parts the
 // other daemon_e2e suites leave: oversized headers, bodies and calibration
 // uploads are refused without the daemon's memory growing (its VmRSS from
 // /proc/PID/status before and after a thousand of them), and the daemon

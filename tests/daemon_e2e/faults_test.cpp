@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// Faults of the head under a running cylscand (issue 9, "Fault injection on
-// the virtual head"). Each test makes one good scan on the fixture's board,
+// Faults of the head under a running cylscand (docs/robustness.md, "Fault
+// injection"). Each test makes one good scan on the fixture's board,
 // restarts the daemon on the same data directory with a copy of the board
 // whose head.toml has a [faults] table (docs/virtual-head.md: faults counted
 // from the head's power-up), scans again and checks that the fault ends

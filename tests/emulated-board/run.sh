@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# The emulated board (issue #8): cylscan's arm64 package on Debian arm64 in
+# The emulated board: cylscan's arm64 package on Debian arm64 in
 # `qemu-system-aarch64 -M virt`, its GPIO lines on a gpio-sim chip and its
 # camera on vivid, all real kernel drivers. See docs/emulated-board.md.
 #   tests/emulated-board/run.sh

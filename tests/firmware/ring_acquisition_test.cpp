@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The ring acquisition of the 360° head (issue #10) on a small copy of the
+// The ring acquisition of the 360° head (docs/head-360.md) on a small copy of the
 // virtual head board/sim360 (four cameras, main turned by 0/90/180/270° about
 // the projector axis): every camera gets both sets, each in the role the
 // projector's geometry gives it; each camera's phase is the head's truth; the
@@ -300,8 +300,8 @@ double seconds(std::chrono::nanoseconds t) {
   return static_cast<double>(t.count()) / 1e9;
 }
 
-// (c) Four cameras cost no more board time than main alone (the issue's
-// requirement: at most 10 % more), whether main alone is scanned with the
+// (c) Four cameras cost no more board time than main alone (the ring plan's
+// aim, checked to at most 10 % more), whether main alone is scanned with the
 // same ring profile or with the single-camera head's plan (board/sim's sets
 // plan: each set at its own start, steps of θ/N). Board (virtual) time is
 // deterministic, so this is not a wall-clock assertion.

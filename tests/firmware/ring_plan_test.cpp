@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// The ring planner of the 360° head (issue #10): every camera's working volume
+// The ring planner of the 360° head (docs/head-360.md): every camera's working volume
 // inside one equivalent period at its sets' first frames and off the half
 // boundaries during its sweeps; a common frame step whose shifts are well
 // conditioned for both sets; impossible layouts refused naming the camera.

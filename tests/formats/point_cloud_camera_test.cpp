@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// The merged cloud of several cameras (issue #10): a uchar `camera` property
-// and `comment camera <i> <name>` lines.
+// The merged cloud of several cameras (docs/formats.md, point clouds): a
+// uchar `camera` property and `comment camera <i> <name>` lines.
 #include <cmath>
 
 #include "formats/point_cloud.hpp"

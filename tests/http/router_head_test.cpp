@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Routing of the 360° head's endpoints (issue #10): /api/v1/head and a ring
+// Routing of the 360° head's endpoints (docs/http-api.md): /api/v1/head and a ring
 // scan's per-camera clouds.
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // Load on the daemon while a scan runs on the virtual head paced to real
-// time (issue 9, "Load"; CTest label `load`; figures in docs/robustness.md).
+// time (CTest label `load`; figures in docs/robustness.md, "Load").
 //
 // Three scans of the same seed, each by a fresh cylscand (a fresh head: the
 // noise of a frame is keyed by its sequence number since power-up):

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // Rendered fringes lie where the geometry says: the phase measured from the
 // frames with an independent least-squares fit matches the analytic wall
-// angle of each pixel's surface point, with the sign convention of spec §1:
+// angle of each pixel's surface point, with the sign convention of
+// docs/formats.md, capture bundle:
 // I_k = A + B cos(φ − δk), δk = 2π (ρk − ρ0) / θ.
 #include <gtest/gtest.h>
 
