@@ -4,7 +4,8 @@
 #   tests/packaging/package_test.sh BUILD_DIR
 # 1. builds it (cpack -G DEB in BUILD_DIR, which builds what is missing first);
 # 2. inspects it: its name, control fields, conffiles and maintainer scripts;
-#    Depends names the package of every shared library the binaries link;
+#    Depends, and the DEP-5 copyright file, name the package of every shared
+#    library the binaries link;
 #    the files are where the unit, the config and the udev/tmpfiles rules say;
 # 3. installs it with apt into a throwaway Debian root made by mmdebstrap
 #    (minbase), where its postinst runs: the files land, the cylscan user
@@ -102,6 +103,11 @@ exec_bin=${exec_start%% *}
 check "ExecStart's program $exec_bin" has "$exec_bin"
 check "ExecStart's program is executable" test -x "$work/tree$exec_bin"
 check "the CLI /usr/bin/cylscan" has /usr/bin/cylscan
+copyright=/usr/share/doc/cylscan/copyright
+check "the licences $copyright" has "$copyright"
+check "$copyright is machine-readable (DEP-5)" \
+  grep -qx 'Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/' "$work/tree$copyright"
+check "$copyright: cylscan is under Apache-2.0" grep -qx 'License: Apache-2.0' "$work/tree$copyright"
 config=$(sed -n 's/.*--config \([^ ]*\).*/\1/p' <<<"$exec_start")
 check "ExecStart's --config $config" has "$config"
 toml() { sed -n "s/^$1 *= *\"\\(.*\\)\"/\\1/p" "$work/tree$config"; }
@@ -133,6 +139,7 @@ for bin in /usr/bin/cylscan "$exec_bin"; do
     pkg=$(dpkg -S "$(readlink -f "$path")" 2>/dev/null | head -n1 | cut -d: -f1)
     [ -n "$pkg" ] || pkg=$(dpkg -S "$path" 2>/dev/null | head -n1 | cut -d: -f1)
     check "Depends names $pkg (for $soname of $bin)" depends_on "$pkg"
+    check "$copyright names $pkg (for $soname of $bin)" grep -qwF -- "$pkg" "$work/tree$copyright"
   done
 done
 check "Depends names passwd (postinst's useradd)" depends_on passwd
