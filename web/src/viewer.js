@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The point-cloud viewer: a binary PLY (docs/formats.md, point clouds: float
 // x y z in mm in the main camera frame, OpenCV axes, then extra properties
 // such as intensity)
