@@ -60,7 +60,7 @@ void VirtualClock::jumpLocked(Nanoseconds deadline) {
 }
 
 // Releases the waits that are over: deadline reached, or an event since.
-bool VirtualClock::releaseSatisfiedLocked() {
+bool VirtualClock::releaseSatisfiedLocked(const Waiter* self, bool& others) {
   const std::int64_t now = now_ns_.load(std::memory_order_relaxed);
   const std::uint64_t epoch = epoch_.load(std::memory_order_seq_cst);
   bool any = false;
@@ -70,40 +70,45 @@ bool VirtualClock::releaseSatisfiedLocked() {
       w->released = true;
       --waiting_;
       any = true;
+      others = others || w != self;
     }
   }
   return any;
 }
 
-// Runs whenever an attached thread starts waiting or one detaches: when every
-// attached thread waits, wake those an event concerns, or else move time to
-// the earliest deadline and wake those it concerns. A released thread counts
-// as running at once, so time cannot move on before it has re-checked.
-void VirtualClock::scheduleLocked() {
+void VirtualClock::scheduleLocked(const Waiter* self) {
   const std::uint64_t epoch = epoch_.load(std::memory_order_seq_cst);
-  bool wake = epoch != notified_epoch_;  // observers waiting for an event
+  // Threads outside the clock wait for an event or for time to move.
+  bool wake = epoch != notified_epoch_ || unattached_waiting_ > 0;
   notified_epoch_ = epoch;
   if (!attached_.empty() && waiting_ >= static_cast<int>(attached_.size())) {
-    if (!releaseSatisfiedLocked()) {
+    bool others = false;
+    if (!releaseSatisfiedLocked(self, others)) {
       std::int64_t earliest = std::numeric_limits<std::int64_t>::max();
       for (const Waiter* w = waiters_; w != nullptr; w = w->next) {
         if (!w->released) earliest = std::min(earliest, w->deadline.count());
       }
       if (earliest != std::numeric_limits<std::int64_t>::max()) {
         jumpLocked(Nanoseconds{earliest});
-        releaseSatisfiedLocked();
+        releaseSatisfiedLocked(self, others);
       }
     }
-    wake = true;
+    wake = wake || others;
   }
   if (wake) cv_.notify_all();
+}
+
+void VirtualClock::waitUnattached(std::unique_lock<std::mutex>& lock) {
+  ++unattached_waiting_;
+  cv_.wait(lock);
+  --unattached_waiting_;
 }
 
 void VirtualClock::waitAttached(Waiter& w, std::unique_lock<std::mutex>& lock) {
   w.next = waiters_;
   waiters_ = &w;
   ++waiting_;
-  scheduleLocked();
+  scheduleLocked(&w);
   cv_.wait(lock, [&w] { return w.released; });
   Waiter** link = &waiters_;
   while (*link != &w)
@@ -132,7 +137,7 @@ void VirtualClock::sleepUntil(Nanoseconds deadline) {
       return;
     }
     if (deadline.count() <= now_ns_.load(std::memory_order_relaxed)) return;
-    cv_.wait(lock);
+    waitUnattached(lock);
   }
 }
 
@@ -165,7 +170,7 @@ void VirtualClock::waitForEvent(std::uint64_t seen_epoch, Nanoseconds deadline) 
       return;
     }
     if (over()) return;
-    cv_.wait(lock);
+    waitUnattached(lock);
   }
 }
 

@@ -63,8 +63,17 @@ class VirtualClock : public drivers::Clock {
   };
   bool attachedLocked(std::thread::id id) const;
   void waitAttached(Waiter& w, std::unique_lock<std::mutex>& lock);
-  bool releaseSatisfiedLocked();
-  void scheduleLocked();
+  // Releases every waiter whose deadline has come or whose event happened;
+  // true if it released any. `others` is set when one of them is not `self`.
+  bool releaseSatisfiedLocked(const Waiter* self, bool& others);
+  // Moves time when every attached thread waits, and wakes the threads that
+  // must look again. A thread that only releases itself (`self`: the usual
+  // step of a motion loop) wakes nobody: one thread's run of short waits
+  // costs no context switch.
+  void scheduleLocked(const Waiter* self = nullptr);
+  // Runs an unattached thread's wait on the condition variable, counted so
+  // that moving time wakes it.
+  void waitUnattached(std::unique_lock<std::mutex>& lock);
   void jumpLocked(Nanoseconds deadline);
 
   bool paced_;
@@ -75,8 +84,9 @@ class VirtualClock : public drivers::Clock {
   mutable std::mutex mutex_;
   std::condition_variable cv_;
   std::vector<std::pair<std::thread::id, int>> attached_;  // thread, nesting depth
-  int waiting_ = 0;            // attached threads waiting and not yet released
-  Waiter* waiters_ = nullptr;  // the attached threads' waits (on their stacks)
+  int waiting_ = 0;             // attached threads waiting and not yet released
+  int unattached_waiting_ = 0;  // threads not attached, blocked until time or an event moves
+  Waiter* waiters_ = nullptr;   // the attached threads' waits (on their stacks)
   std::uint64_t notified_epoch_ = 0;
 };
 
