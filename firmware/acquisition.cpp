@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "firmware/acquisition.hpp"
 
 #include <algorithm>
@@ -20,6 +21,12 @@ using std::chrono::nanoseconds;
 // earliest exposure + readout after its trigger (milliseconds), so 1 ms loses
 // nothing, and on the virtual head's clock fewer polls are fewer wake-ups.
 constexpr nanoseconds kPoll = std::chrono::milliseconds(1);
+// The capture side waits for the stage (a move, homing, the step check) with
+// polls that grow to this: a 180° travel is seconds of waiting, thousands of
+// 1 ms wake-ups. Its frames wait in the cameras' queues, and the motion
+// thread announces each stop-and-go trigger when the stage arrives, so a
+// longer poll delays nothing.
+constexpr nanoseconds kPollMax = std::chrono::milliseconds(4);
 
 nanoseconds us(double value) {
   return nanoseconds{std::llround(value * 1e3)};
@@ -129,7 +136,10 @@ struct Acquisition::Shared {
   std::vector<double> angle_deg;                      // written before `triggered` passes the frame
   std::vector<std::atomic<std::int64_t>> trigger_ns;  // latest trigger of each frame
   std::atomic<int> triggered{0};                      // frames triggered (or, continuous, armed)
-  std::atomic<int> acked{0};                          // frames received from every camera
+  // Stop-and-go: when the next trigger fires (the end of the settle), told
+  // as the stage arrives so that the capture side can sleep until then.
+  std::atomic<std::int64_t> next_trigger_ns{0};
+  std::atomic<int> acked{0};             // frames received from every camera
   std::atomic<int> retrigger{-1};        // frame (stop-and-go) or first frame of a set to redo
   std::atomic<int> sweep_generation{0};  // continuous: sweeps started (a re-sweep is a new one)
   std::atomic<bool> failed{false};
@@ -176,8 +186,17 @@ Acquisition::Acquisition(drivers::Board& board) : board_(board) {
 }
 
 Acquisition::~Acquisition() {
-  light_->set(false);
-  stage_->disable();
+  // A line that fails now (a GPIO chip gone, a kernel error) must not end the
+  // program from a destructor; the stage driver's own destructor disables it
+  // again and reports nothing either.
+  try {
+    light_->set(false);
+  } catch (...) {  // nothing can be reported from a destructor
+  }
+  try {
+    stage_->disable();
+  } catch (...) {  // as above
+  }
 }
 
 HeadOutputs Acquisition::outputs() const {
@@ -197,6 +216,69 @@ void Acquisition::publishStage() {
 void Acquisition::abort() noexcept {
   abort_.store(true, std::memory_order_release);
   stage_->abort();
+}
+
+void Acquisition::armSoftwareTriggers(const std::vector<std::string>& cameras) {
+  trigger_.clearSoftwareCameras();
+  for (const auto& name : cameras) {
+    if (board_.profile().camera(name).config.trigger == drivers::TriggerMode::Software)
+      trigger_.addSoftwareCamera(board_.camera(name));
+  }
+}
+
+std::vector<cv::Mat> Acquisition::still(const StillOptions& options) {
+  abort_.store(false, std::memory_order_release);
+  if (options.cameras.empty()) throw std::invalid_argument("still: no camera to capture");
+  armSoftwareTriggers(options.cameras);
+  drivers::Clock& clock = board_.clock();
+  const nanoseconds timeout = us(options.frame_timeout_ms * 1e3);
+  struct LightOff {  // however the capture ends
+    drivers::OutputLine& light;
+    ~LightOff() {
+      try {
+        light.set(false);
+      } catch (...) {  // the capture's own error comes first
+      }
+    }
+  } light_off{*light_};
+  const drivers::ClockThread attach(clock);
+  const RunningCameras cameras(board_, options.cameras);
+  light_->set(options.light);
+  std::vector<cv::Mat> images;
+  for (int attempt = 0;; ++attempt) {
+    const nanoseconds triggered = clock.now();
+    trigger_.set(true);
+    clock.sleepUntil(clock.now() + us(options.trigger_pulse_us));
+    trigger_.set(false);
+    images.clear();
+    std::string silent;  // the first camera without a frame of this trigger
+    for (const std::string& name : options.cameras) {
+      const nanoseconds latency = us(board_.profile().camera(name).image_latency_ms * 1e3);
+      const nanoseconds give_up = clock.now() + latency + timeout;
+      std::optional<drivers::Frame> frame;
+      for (;;) {
+        if (abort_.load(std::memory_order_acquire)) throw ScanError("capture aborted");
+        frame = board_.camera(name).waitFrame(timeout);
+        // A frame exposed before the trigger (or a stream's older frame) is
+        // passed over, until the stream has had its latency and timeout.
+        if (!frame || frame->timestamp >= triggered + latency) break;
+        if (clock.now() > give_up) {
+          frame.reset();
+          break;
+        }
+      }
+      if (!frame) {
+        silent = name;
+        break;
+      }
+      images.push_back(frame->image.clone());
+    }
+    if (silent.empty()) return images;
+    if (attempt > 0) {
+      throw ScanError("capture failed: camera '" + silent + "': no frame within " +
+                      number(options.frame_timeout_ms) + " ms of the trigger, twice");
+    }
+  }
 }
 
 void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Shared& shared) {
@@ -241,7 +323,9 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
         for (int k = 0; k < n; ++k) {
           const int frame = base + k;
           stage_->moveToStep(set.positions[static_cast<std::size_t>(k)]);
-          clock.sleepUntil(clock.now() + us(options.settle_ms * 1e3));
+          const nanoseconds settled = clock.now() + us(options.settle_ms * 1e3);
+          shared.next_trigger_ns.store(settled.count(), std::memory_order_release);
+          clock.sleepUntil(settled);
           shared.angle_deg[static_cast<std::size_t>(frame)] = stage_->angleDeg();
           shared.triggered.store(frame + 1, std::memory_order_release);
           pulse(frame);
@@ -298,6 +382,24 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
   drivers::Clock& clock = board_.clock();
   const nanoseconds timeout = us(options.frame_timeout_ms * 1e3);
   auto halted = [&] { return shared.stopping() || abort_.load(std::memory_order_acquire); };
+  // Waits on the board's clock until `done()`, or returns false when the scan
+  // halts or the motion ends first.
+  auto awaitMotion = [&](const auto& done) {
+    nanoseconds poll = kPoll;
+    while (!done()) {
+      if (halted() || shared.motion_done.load(std::memory_order_acquire)) return false;
+      const nanoseconds now = clock.now();
+      const nanoseconds announced{shared.next_trigger_ns.load(std::memory_order_acquire)};
+      if (announced > now) {
+        clock.sleepUntil(announced);
+        poll = kPoll;
+      } else {
+        clock.sleepUntil(now + poll);
+        poll = std::min(2 * poll, kPollMax);
+      }
+    }
+    return true;
+  };
   std::map<std::string, std::optional<std::uint64_t>> next_sequence;
   std::map<std::string, int> received, skip;  // frames of the current set, per camera
   // How each camera's frames are taken: a continuous stream's frame of a
@@ -321,10 +423,8 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
     skip.clear();
     for (int k = 0; k < n; ++k) {
       const int frame = base + k;
-      while (shared.triggered.load(std::memory_order_acquire) <= frame) {
-        if (halted() || shared.motion_done.load(std::memory_order_acquire)) return;
-        clock.sleepUntil(clock.now() + kPoll);
-      }
+      if (!awaitMotion([&] { return shared.triggered.load(std::memory_order_acquire) > frame; }))
+        return;
       bool retried = false;
       for (const std::string& name : options.cameras) {
         drivers::Camera& camera = board_.camera(name);
@@ -404,8 +504,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
     }
     base += n;
   }
-  while (!shared.motion_done.load(std::memory_order_acquire) && !halted())
-    clock.sleepUntil(clock.now() + kPoll);
+  awaitMotion([] { return false; });  // until the motion ends (the step check) or halts
 }
 
 ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink,
@@ -416,11 +515,9 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
     ~Publish() { acquisition.publishStage(); }
   } publish{*this};
   if (options.cameras.empty()) throw std::invalid_argument("scan: no camera to capture");
-  trigger_.clearSoftwareCameras();
+  armSoftwareTriggers(options.cameras);
   for (const auto& name : options.cameras) {
     const drivers::CameraProfile& camera = board_.profile().camera(name);
-    if (camera.config.trigger == drivers::TriggerMode::Software)
-      trigger_.addSoftwareCamera(board_.camera(name));
     if (camera.config.trigger == drivers::TriggerMode::FreeRunning &&
         options.mode == drivers::ScanMode::Continuous)
       throw std::invalid_argument("scan: camera '" + name +

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The acquisition loop: the scan plan executed on the board through the
 // driver interfaces, whatever the backends are (the virtual head or GPIO +
 // V4L2/libcamera). Two threads:
@@ -74,6 +75,15 @@ struct ScanReport {
   std::chrono::nanoseconds step_slip{0};
 };
 
+// One exposure of each camera where the stage stands: a checkerboard pair, a
+// snapshot. The light is set to `light` for it and off afterwards.
+struct StillOptions {
+  std::vector<std::string> cameras{"main"};
+  bool light = false;
+  double frame_timeout_ms = 1000;
+  double trigger_pulse_us = 10;
+};
+
 // What the firmware last drove on the head's outputs (the stage driver's
 // enable line, the light line) and the stage's state when it last stopped
 // (homed, position), for the daemon's status. Read from any thread.
@@ -99,6 +109,12 @@ class Acquisition {
   ScanReport run(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink,
                  const std::function<void(const ScanProgress&)>& progress = {});
 
+  // One trigger and each camera's first frame exposed after it (a continuous
+  // stream's: stamped its image latency after it), in the order of
+  // `options.cameras`; the stage does not move. A camera timeout triggers
+  // once more; ScanError on a second one or an abort.
+  std::vector<cv::Mat> still(const StillOptions& options);
+
   // From any thread: the running scan stops as soon as it can and fails.
   void abort() noexcept;
 
@@ -110,6 +126,7 @@ class Acquisition {
 
  private:
   void publishStage();
+  void armSoftwareTriggers(const std::vector<std::string>& cameras);
   struct Shared;
   void motion(const ScanOptions& options, const ScanPlan& plan, Shared& shared);
   void capture(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink, Shared& shared,

@@ -442,6 +442,45 @@ TEST(Acquisition, EachReportTimesTheEdgesOfItsOwnScan) {
   EXPECT_EQ(reports[2].trigger_jitter.count, reports[1].trigger_jitter.count);
 }
 
+// A still is one exposure of each camera where the stage stands: the light as
+// asked for it and off afterwards, the stage never moved, a silent camera
+// triggered once more and a second silence an error.
+TEST(Acquisition, AStillIsOneExposureOfEachCameraWithTheStageAtRest) {
+  TempDir dir;
+  Scan scan(smallBoard(dir, kPlane));
+  Acquisition acquisition(scan.board);
+  const std::int64_t position = scan.head().stage().position();
+  StillOptions options;
+  options.cameras = {"main", "aux"};
+  options.light = true;
+  const std::vector<cv::Mat> lit = acquisition.still(options);
+  options.light = false;
+  const std::vector<cv::Mat> dark = acquisition.still(options);
+  ASSERT_EQ(lit.size(), 2u);
+  ASSERT_EQ(dark.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    const auto& camera = scan.board.profile().camera(options.cameras[i]).config;
+    EXPECT_EQ(lit[i].cols, camera.width);
+    EXPECT_EQ(lit[i].rows, camera.height);
+    // The scene's ambient light is 0.03: the projector's light is most of a lit frame.
+    EXPECT_GT(cv::mean(lit[i])[0], 3 * cv::mean(dark[i])[0]) << options.cameras[i];
+  }
+  EXPECT_FALSE(scan.head().lightOn());
+  EXPECT_EQ(scan.head().stage().position(), position);
+  EXPECT_FALSE(acquisition.outputs().stage_enabled);
+
+  scan.head().dropFrames("aux", 1);
+  EXPECT_EQ(acquisition.still(options).size(), 2u);
+  scan.head().dropFrames("aux", 2);
+  try {
+    acquisition.still(options);
+    ADD_FAILURE() << "a camera silent twice must fail the still";
+  } catch (const ScanError& e) {
+    EXPECT_NE(std::string(e.what()).find("camera 'aux'"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(scan.head().lightOn());
+}
+
 TEST(ScanPlan, ExactStepPositionsFromTheStartAngles) {
   drivers::StageConfig stage;  // 250 steps per degree
   ScanOptions options;
