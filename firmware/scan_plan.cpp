@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "firmware/scan_plan.hpp"
 
 #include <algorithm>
@@ -320,6 +321,27 @@ ScanOptions scanOptionsFrom(const drivers::BoardProfile& profile) {
   }
   if (o.frame_rate_hz >= 1e9) o.frame_rate_hz = 30;
   return o;
+}
+
+ScanPlan cameraSetsPlan(const ScanPlan& ring, std::string_view camera) {
+  if (!ring.ring) throw std::invalid_argument("cameraSetsPlan: not a ring plan");
+  const auto& cams = ring.ring->cameras;
+  if (std::none_of(cams.begin(), cams.end(),
+                   [&](const RingCamera& c) { return c.camera == camera; })) {
+    throw std::invalid_argument("cameraSetsPlan: the ring plan has no camera '" +
+                                std::string(camera) + "'");
+  }
+  ScanPlan out;
+  out.high = ring.motionSetOf(camera, formats::FringeSetId::High);
+  out.high.set = formats::FringeSetId::High;
+  out.high.period_deg = ring.period_high_deg;
+  out.low = ring.motionSetOf(camera, formats::FringeSetId::Low);
+  out.low.set = formats::FringeSetId::Low;
+  out.low.period_deg = ring.period_low_deg;
+  out.steps_per_deg = ring.steps_per_deg;
+  out.period_high_deg = ring.period_high_deg;
+  out.period_low_deg = ring.period_low_deg;
+  return out;
 }
 
 std::vector<double> ScanPlan::anglesDeg(formats::FringeSetId id) const {

@@ -1,4 +1,5 @@
-// The scan plan (issue "Real-time acquisition"): where the stage is for every
+// SPDX-License-Identifier: Apache-2.0
+// The scan plan: where the stage is for every
 // frame of both fringe sets, in exact step counts, before anything moves.
 //
 // The high set's frame k is exposed at high_start + round(k·θh/N) steps, the
@@ -83,7 +84,7 @@ struct RingCamera {
   double half_margin_deg = 0;    // to the nearest half boundary, over its sweeps
 };
 
-// The ring plan (issue #10): sweep 1 from `start_deg`, sweep 2 from 180° away,
+// The ring plan of a 360° head: sweep 1 from `start_deg`, sweep 2 from 180° away,
 // both `frames` frames at `step_steps` motor steps. Cameras facing the high
 // half in sweep 1 take it as their high set and sweep 2 as their low set; the
 // others the other way round. So each set of a camera is stepped by the same
@@ -142,5 +143,12 @@ double phaseNoiseGain(const std::vector<double>& shifts_rad);
 // volume inside one equivalent period at its sets' first frames and off the
 // half boundaries during its sweeps (or when a camera has no azimuths).
 ScanPlan planScan(const ScanOptions& options, const drivers::StageConfig& stage);
+
+// One camera's two sets of a ring plan as a plan of their own (high, then
+// low, at the ring's positions for that camera): the calibration scans of a
+// 360° head's camera, taken one direction at a time with a temporary aux
+// camera beside it, must share the phase origin of that camera's ring sets.
+// std::invalid_argument when `ring` is not a ring plan or has no such camera.
+ScanPlan cameraSetsPlan(const ScanPlan& ring, std::string_view camera);
 
 }  // namespace cylscan::firmware

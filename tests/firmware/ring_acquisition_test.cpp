@@ -415,4 +415,22 @@ TEST(RingAcquisition, ALostFrameOfASwappedCameraIsSweptAgain) {
 }
 
 }  // namespace
+// A camera's calibration scans use its own sets of the ring, as a plan of
+// their own: the same positions, each set in its own role.
+TEST(RingAcquisition, ACamerasSetsAreAPlanOfTheirOwn) {
+  TempDir dir;
+  const Scan scan(ringBoard(dir));
+  for (const std::string& camera : kCameras) {
+    const ScanPlan own = cameraSetsPlan(scan.plan, camera);
+    EXPECT_FALSE(own.ring);
+    for (const FringeSetId id : formats::kFringeSets) {
+      EXPECT_EQ(own.set(id).positions, scan.plan.motionSetOf(camera, id).positions) << camera;
+      EXPECT_EQ(own.setOf("main", id), id);
+      EXPECT_EQ(own.anglesDeg(id), scan.plan.anglesDeg(camera, id)) << camera;
+    }
+  }
+  EXPECT_THROW(cameraSetsPlan(scan.plan, "cam45"), std::invalid_argument);
+  EXPECT_THROW(cameraSetsPlan(cameraSetsPlan(scan.plan, "main"), "main"), std::invalid_argument);
+}
+
 }  // namespace cylscan::firmware
