@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "drivers/board.hpp"
 
 #include <stdexcept>
@@ -56,8 +57,16 @@ Board::~Board() = default;
 
 Board Board::open(const std::filesystem::path& profile,
                   const std::optional<std::filesystem::path>& scene) {
+  return openWith(loadBoardProfile(profile), scene);
+}
+
+Board Board::open(BoardProfile profile) {
+  return openWith(std::move(profile), std::nullopt);
+}
+
+Board Board::openWith(BoardProfile profile, const std::optional<std::filesystem::path>& scene) {
   Board b;
-  b.profile_ = loadBoardProfile(profile);
+  b.profile_ = std::move(profile);
   if (b.profile_.sim) {
     b.openSim(scene);
   } else {

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A board: the backends its profile chooses, owned in one place. Firmware asks
 // it for the GPIO backend, the cameras by name and the clock, and never learns
 // which backends they are; only tests and `cylscan simulate` look at the
@@ -33,6 +34,9 @@ class Board {
   // backend cannot be opened or was not built.
   static Board open(const std::filesystem::path& profile,
                     const std::optional<std::filesystem::path>& scene = std::nullopt);
+  // The same from a profile already loaded (and perhaps adjusted: `cylscan
+  // simulate` renders on the virtual head at the resolution it is asked for).
+  static Board open(BoardProfile profile);
 
   Board(Board&&) noexcept;
   Board& operator=(Board&&) noexcept;
@@ -53,6 +57,7 @@ class Board {
 
  private:
   Board() = default;
+  static Board openWith(BoardProfile profile, const std::optional<std::filesystem::path>& scene);
   void openSim(const std::optional<std::filesystem::path>& scene);
   void openHardware();
 

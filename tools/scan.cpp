@@ -24,6 +24,7 @@
 #include "firmware/bundle_sink.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/scan_plan.hpp"
+#include "firmware/shipped_boards.hpp"
 #include "formats/images.hpp"
 #include "formats/input_error.hpp"
 #include "formats/point_cloud.hpp"
@@ -39,7 +40,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 struct ScanRequest {
-  std::string board = "board/sim";
+  std::string board;  // empty: the shipped board/sim
   std::string out;
   std::string calib;
   std::string cloud;
@@ -104,7 +105,8 @@ void runScan(const ScanRequest& request) {
   std::optional<algo::QuasiCalibration> calib;
   if (!request.calib.empty()) calib = readQuasiCalibration(request.calib);
   drivers::Board board = drivers::Board::open(
-      request.board, request.scene.empty() ? std::nullopt : std::optional<fs::path>(request.scene));
+      request.board.empty() ? firmware::shippedBoard("sim") : fs::path(request.board),
+      request.scene.empty() ? std::nullopt : std::optional<fs::path>(request.scene));
   const drivers::BoardProfile& profile = board.profile();
   const firmware::ScanOptions options = optionsFor(request, profile);
   // A ring is the head's layout, planned for every camera of the profile even
@@ -212,7 +214,8 @@ void runScan(const ScanRequest& request) {
 void addScanCommand(CLI::App& app) {
   auto request = std::make_shared<ScanRequest>();
   CLI::App* cmd = app.add_subcommand("scan", "one acquisition on a board (default board/sim)");
-  cmd->add_option("--board", request->board, "board profile folder (default board/sim)");
+  cmd->add_option("--board", request->board,
+                  "board profile folder (default: the shipped board/sim, the virtual head)");
   cmd->add_option("--out", request->out, "capture bundle to write");
   cmd->add_option("--calib", request->calib, "quasi-calibration for --cloud");
   cmd->add_option("--cloud", request->cloud, "point cloud to write (needs --calib)");

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "firmware/daemon/daemon_config.hpp"
 
 #include <cctype>
@@ -10,6 +11,8 @@
 #include <sstream>
 
 #include <toml++/toml.h>
+
+#include "firmware/shipped_boards.hpp"
 
 namespace cylscan::firmware {
 namespace {
@@ -151,9 +154,7 @@ DaemonDefaults daemonDefaults(const fs::path& exe_dir) {
   DaemonDefaults d;
   const fs::path share = exe_dir / ".." / "share" / "cylscan";
   std::error_code ec;
-  d.board = fs::is_directory(share / "board" / "sim", ec)
-                ? (share / "board" / "sim").lexically_normal()
-                : fs::path(CYLSCAN_SOURCE_BOARD_DIR);
+  d.board = firmware::shippedBoard(exe_dir, "sim");
   d.web_root = fs::is_directory(share / "web", ec) ? (share / "web").lexically_normal()
                                                    : fs::path(CYLSCAN_BUILD_WEB_DIR);
   // getenv is not thread-safe against setenv: called from main before any
