@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "firmware/bundle_sink.hpp"
 
 #include <algorithm>
@@ -32,7 +33,7 @@ formats::CaptureInfo infoOf(const ScanPlan& plan, const std::vector<std::string>
                             nlohmann::json extra) {
   formats::CaptureInfo info;
   info.cameras = cameras;
-  // The top-level sets are main's (spec §1); a camera whose angles differ
+  // The top-level sets are main's (docs/formats.md); a camera whose angles differ
   // (a ring plan's cameras facing the other half) carries its own.
   auto setOf = [&](std::string_view camera, FringeSetId id) {
     return formats::FringeSetInfo{plan.periodDeg(id), plan.anglesDeg(camera, id)};

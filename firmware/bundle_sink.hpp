@@ -1,4 +1,5 @@
-// Saving the raw frames of a scan as a capture bundle (spec §1), with the
+// SPDX-License-Identifier: Apache-2.0
+// Saving the raw frames of a scan as a capture bundle (docs/formats.md), with the
 // executed angles; optional, since the streaming fold needs no frames kept.
 // The bundle's capture.json is written last (commit), so an interrupted scan
 // never leaves a bundle that reads as complete.
