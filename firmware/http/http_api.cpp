@@ -447,9 +447,10 @@ MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
   if (r.route.param_status != 0) {
     return refuse(c, r, errorReply(r.route.param_status, r.route.error));
   }
-  r.limit = r.route.endpoint == http::Endpoint::Calibration && r.method == "PUT"
-                ? options.max_calibration_bytes
-                : options.max_json_bytes;
+  // By the endpoint, never by the limit: the two limits may be equal.
+  const bool calibration_upload_request =
+      r.route.endpoint == http::Endpoint::Calibration && r.method == "PUT";
+  r.limit = calibration_upload_request ? options.max_calibration_bytes : options.max_json_bytes;
   // The limit is checked before any byte of the body is read, so the size
   // must be known: a chunked body (no Content-Length) is refused with 411.
   if (headerValue(c, MHD_HTTP_HEADER_TRANSFER_ENCODING) != nullptr) {
@@ -472,7 +473,7 @@ MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
     // Memory grows with what arrives, not with what is announced.
     r.body.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(n, 1u << 20)));
   }
-  if (r.limit == options.max_calibration_bytes && r.method == "PUT") {
+  if (calibration_upload_request) {
     // One calibration upload at a time: each may hold max_calibration_bytes.
     if (calibration_upload.exchange(true)) {
       return answer(c, r, errorReply(409, "another calibration upload is in progress"));

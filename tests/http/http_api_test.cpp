@@ -459,6 +459,49 @@ TEST_F(HttpApiTest, OneCalibrationUploadAtATime) {
   EXPECT_EQ(service.last_bytes, "abc");
 }
 
+// The calibration upload's slot belongs to PUT /api/v1/calibration alone,
+// also when its body limit equals the other endpoints' (65536, a legal
+// max_calibration_bytes): a head.json sent meanwhile is installed, and a
+// calibration sent while a head.json is being read is not refused.
+TEST_F(HttpApiTest, TheCalibrationUploadSlotIsTheCalibrationEndpointsAlone) {
+  options.max_calibration_bytes = options.max_json_bytes;
+  start();
+  // A PUT of 10 bytes whose head was accepted ("100 Continue": an upload
+  // slot would be taken by now) and half of whose body was sent.
+  const auto begin = [&](const std::string& path) {
+    auto s = std::make_unique<RawSocket>("127.0.0.1", api->port());
+    EXPECT_TRUE(s->ok());
+    s->send("PUT " + path + " HTTP/1.1\r\nHost: x\r\n" + kAuth +
+            "\r\nContent-Length: 10\r\nExpect: 100-continue\r\n\r\n");
+    const std::string interim = s->readHead();
+    EXPECT_EQ(statusOf(interim), 100) << path << ": " << interim;
+    s->send("12345");
+    return std::make_pair(std::move(s), interim.size());
+  };
+  // The rest of its body, and its answer.
+  const auto finish = [](RawSocket& s, std::size_t interim) {
+    s.send("67890");
+    const std::string received = s.readUntil([&](const std::string& t) {
+      return t.size() > interim && t.find("\r\n\r\n", interim) != std::string::npos;
+    });
+    return statusOf(received.substr(interim));
+  };
+
+  auto [calibration, calibration_interim] = begin("/api/v1/calibration");
+  const HttpResult head = send("PUT", "/api/v1/head", "{}");
+  EXPECT_EQ(head.status, 200) << head.body;
+  EXPECT_EQ(service.head_installs, 1);
+  EXPECT_EQ(finish(*calibration, calibration_interim), 200);
+  EXPECT_EQ(service.last_bytes, "1234567890");
+
+  auto [head_upload, head_interim] = begin("/api/v1/head");
+  const HttpResult next = send("PUT", "/api/v1/calibration", "abc");
+  EXPECT_EQ(next.status, 200) << next.body;
+  EXPECT_EQ(service.last_bytes, "abc");
+  EXPECT_EQ(finish(*head_upload, head_interim), 200);
+  EXPECT_EQ(service.last_head, "1234567890");
+}
+
 TEST_F(HttpApiTest, ChunkedBodiesAre411) {
   start();
   // The limit is checked before the body: its size must be known.

@@ -83,9 +83,9 @@ class FakeService : public firmware::HeadService {
 
   // What was asked.
   mutable std::vector<std::string> lookups;  // ids passed to scan()/scanFile()/deleteScan()
-  int start_calls = 0, delete_calls = 0, install_calls = 0;
+  int start_calls = 0, delete_calls = 0, install_calls = 0, head_installs = 0;
   json last_options;
-  std::string last_camera, last_bytes;
+  std::string last_camera, last_bytes, last_head;
 
   json status() const override {
     std::lock_guard lock(mutex);
@@ -138,6 +138,12 @@ class FakeService : public firmware::HeadService {
     last_bytes = bytes;
     if (install_error) throw *install_error;
     return json{{"installed", true}, {"bytes", bytes.size()}};
+  }
+  json installHead(std::string_view text) override {
+    std::lock_guard lock(mutex);
+    ++head_installs;
+    last_head = text;
+    return json{{"format", "cylscan-head-1"}};
   }
   json calibrationInfo(std::string_view camera) const override {
     return json{{"installed", false}, {"camera", std::string(camera)}};
