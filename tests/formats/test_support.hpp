@@ -10,39 +10,25 @@
 #include <fstream>
 #include <initializer_list>
 #include <iterator>
-#include <random>
 #include <string>
 #include <string_view>
 #include <system_error>
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include "formats/input_error.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace cylscan::formats::testing {
 
 namespace fs = std::filesystem;
 
-// A fresh directory for each test, removed afterwards.
+// A fresh directory for each test (test_support::TempDir), removed afterwards.
 class TempDirTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::random_device random;
-    dir_ = fs::temp_directory_path() /
-           ("cylscan-formats-" + std::string(info->test_suite_name()) + "-" + info->name() + "-" +
-            std::to_string(::getpid()) + "-" + std::to_string(random()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::permissions(dir_, fs::perms::owner_all, fs::perm_options::add, ec);
-    fs::remove_all(dir_, ec);
-  }
-
-  fs::path dir_;
+  test_support::TempDir temp_;
+  const fs::path dir_ = temp_.path();
 };
 
 inline std::string readText(const fs::path& file) {

@@ -10,34 +10,14 @@
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/toml_reader.hpp"
 #include "drivers/sim/triangle_mesh.hpp"
+#include "tests/support/temp_dir.hpp"
 
 namespace cylscan::sim {
 namespace {
 
 namespace fs = std::filesystem;
+using test_support::TempDir;
 const fs::path kBoard = fs::path(CYLSCAN_SOURCE_DIR) / "board" / "sim";
-
-class TempFiles {
- public:
-  TempFiles() {
-    std::random_device rd;
-    dir_ =
-        fs::temp_directory_path() / ("cylscan-sim-" + std::to_string(rd()) + std::to_string(rd()));
-    fs::create_directories(dir_);
-  }
-  ~TempFiles() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  fs::path write(const std::string& name, const std::string& text) {
-    std::ofstream(dir_ / name, std::ios::binary) << text;
-    return dir_ / name;
-  }
-  const fs::path& dir() const { return dir_; }
-
- private:
-  fs::path dir_;
-};
 
 // The error names the file, the line and the key.
 void expectConfigError(const std::function<void()>& f, int line, const std::string& key) {
@@ -73,7 +53,7 @@ TEST(HeadFile, BoardSimHeadIsTheBuiltInDefault) {
 }
 
 TEST(HeadFile, ErrorsNameFileLineAndKey) {
-  TempFiles tmp;
+  TempDir tmp;
   const auto unknown = tmp.write("a.toml", "[projector]\nradius_mm = 30\nradius = 3\n");
   expectConfigError([&] { loadHeadConfig(unknown); }, 3, "projector.radius");
   const auto bad = tmp.write("b.toml", "[stage]\n\nmax_speed_deg_s = -1\n");
@@ -86,7 +66,7 @@ TEST(HeadFile, ErrorsNameFileLineAndKey) {
   expectConfigError([&] { loadHeadConfig(cam); }, 5, "camera[1].bit_depth");
   const auto syntax = tmp.write("e.toml", "[stage\n");
   EXPECT_THROW(loadHeadConfig(syntax), ConfigError);
-  EXPECT_THROW(loadHeadConfig(tmp.dir() / "missing.toml"), ConfigError);
+  EXPECT_THROW(loadHeadConfig(tmp.path() / "missing.toml"), ConfigError);
   // A [sim] section of a board profile reads the same way.
   const toml::table board = toml::parse("[sim.stage]\nmicrosteps = 16\n");
   const HeadConfig c = parseHeadConfig(*board["sim"].as_table(), "board.toml", "sim");
@@ -105,7 +85,7 @@ TEST(SceneFile, BoardScenesLoad) {
 }
 
 TEST(SceneFile, AllShapesAndErrors) {
-  TempFiles tmp;
+  TempDir tmp;
   tmp.write("tri.ply",
             "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
             "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
@@ -166,7 +146,7 @@ scale = 2
 }
 
 TEST(Ply, BinaryAndAsciiGiveTheSameMesh) {
-  TempFiles tmp;
+  TempDir tmp;
   std::string bin =
       "ply\nformat binary_little_endian 1.0\ncomment cube corner\nelement vertex 3\n"
       "property double x\nproperty double y\nproperty double z\nproperty uchar red\n"
