@@ -16,11 +16,11 @@ using Nanoseconds = std::chrono::nanoseconds;
 // Where a line is: by its device-tree name (gpiofind-style), or by chip and
 // offset. Exactly one of `name` or (`chip`, `offset`) is used.
 struct LineSpec {
-  std::string name;             // e.g. "GPIO17" or "cylscan-step"; empty when chip/offset used
-  std::string chip;             // e.g. "gpiochip0" or "/dev/gpiochip0"
-  int offset = -1;              // line offset on `chip`
-  bool active_low = false;      // polarity: set(true) drives the line to its active level
-  std::string role;             // what the line is for ("step", "home", ...), for messages
+  std::string name;         // e.g. "GPIO17" or "cylscan-step"; empty when chip/offset used
+  std::string chip;         // e.g. "gpiochip0" or "/dev/gpiochip0"
+  int offset = -1;          // line offset on `chip`
+  bool active_low = false;  // polarity: set(true) drives the line to its active level
+  std::string role;         // what the line is for ("step", "home", ...), for messages
 };
 
 enum class Edge { Rising, Falling };
