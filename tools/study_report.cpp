@@ -192,7 +192,7 @@ class ReportWriter {
   }
 
   void acceptance() {
-    out_ << "## Acceptance checks (issue 4)\n\n";
+    out_ << "## Acceptance checks\n\n";
     Table t({"check", "measured", "result"});
     for (const json& c : r_.at("acceptance")) {
       t.row({c.at("check").get<std::string>(), c.at("measured").get<std::string>(),

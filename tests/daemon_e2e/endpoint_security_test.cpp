@@ -101,7 +101,7 @@ TEST(DaemonEndpoint, OversizedRequestsAreRefusedWithoutMemoryGrowth) {
       "requests (%+.2f MiB)\n",
       before / 1048576.0, after / 1048576.0, growth_mib);
   EXPECT_LT(growth_mib, 16.0) << "the daemon's resident memory grew by " << growth_mib << " MiB";
-  // Nothing was stored, and the daemon serves as before.
+  // Nothing was stored, and the daemon goes on serving.
   EXPECT_EQ(client.get("/api/v1/scans").json().size(), 0u);
   EXPECT_EQ(client.get("/api/v1/calibration/main").status, 404);
   EXPECT_EQ(client.get("/api/v1/status").status, 200);

@@ -371,7 +371,7 @@ TEST(RingAcquisition, FourCamerasTakeTheTimeOfOneContinuous) {
   expectFourCamerasAsFastAsOne({{"mode = \"stop\"", "mode = \"continuous\""}}, "continuous", true);
 }
 
-// Retries work per camera as before: a swapped camera's lost frame at the end
+// Retries work per camera in a ring scan too: a swapped camera's lost frame at the end
 // of sweep 1 (its low set) sweeps it again, every camera skipping the frames
 // it has; a second loss fails the scan naming the camera's own set.
 TEST(RingAcquisition, ALostFrameOfASwappedCameraIsSweptAgain) {

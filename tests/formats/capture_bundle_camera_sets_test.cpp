@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The capture bundle's "camera_sets" extension (a ring scan's cameras, each
 // with its own sets): written and read back per camera, validated like the
-// top-level sets, and old bundles read exactly as before.
+// top-level sets, and bundles without it read as the plain format.
 #include <functional>
 #include <string>
 #include <vector>
