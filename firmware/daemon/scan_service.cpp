@@ -12,10 +12,9 @@
 #include "firmware/daemon/log.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/reconstruction.hpp"
+#include "firmware/scan_output.hpp"
 #include "firmware/scan_plan.hpp"
-#include "formats/file_reading.hpp"
 #include "formats/head_extrinsics.hpp"
-#include "formats/images.hpp"
 #include "formats/input_error.hpp"
 
 namespace cylscan::firmware {
@@ -28,6 +27,7 @@ using Clock = std::chrono::steady_clock;
 // What a scan's outputs take a pixel, at most: cloud.ply (xyz + 3 properties,
 // 24 B), depth.tiff (4 B), texture.png (1 B), phase.png and depth.png (3 B each).
 constexpr std::uint64_t kOutputBytesPerPixel = 36;
+constexpr std::string_view kBundleDir = "bundle";  // a scan's raw frames, when kept
 
 std::string isoTime(std::chrono::system_clock::time_point t) {
   const std::time_t secs = std::chrono::system_clock::to_time_t(t);
@@ -36,11 +36,6 @@ std::string isoTime(std::chrono::system_clock::time_point t) {
   std::array<char, 32> buf{};
   std::strftime(buf.data(), buf.size(), "%Y-%m-%dT%H:%M:%SZ", &tm);
   return buf.data();
-}
-
-json jitterJson(const drivers::JitterStats::Snapshot& s) {
-  auto us = [](std::chrono::nanoseconds t) { return static_cast<double>(t.count()) / 1e3; };
-  return {{"count", s.count}, {"p50_us", us(s.p50)}, {"p99_us", us(s.p99)}, {"max_us", us(s.max)}};
 }
 
 double secondsSince(Clock::time_point t0) {
@@ -57,6 +52,15 @@ bool isSceneName(const std::string& name) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
            c == '_' || c == '-';
   });
+}
+
+// GET /api/v1/calibration's answer for an installed calibration.
+json calibrationInfoJson(const algo::QuasiCalibration& calib, std::uintmax_t bytes) {
+  return {{"installed", true},
+          {"bytes", bytes},
+          {"width", calib.size().width},
+          {"height", calib.size().height},
+          {"phase_source", toString(phaseChoiceOf(calib.info().phase_source))}};
 }
 
 const std::vector<double>& durationBoundsSeconds() {
@@ -77,9 +81,8 @@ struct ScanService::Request {
 };
 
 struct ScanService::Job {
-  std::string id;
   Request request;
-  json object;  // the scan object; mutex_
+  ScanRecord record;  // mutex_ (the worker alone changes it)
   Clock::time_point started = Clock::now();
 };
 
@@ -140,22 +143,16 @@ bool ScanService::waitUntilIdle(std::chrono::milliseconds timeout) const {
 }
 
 void ScanService::loadCalibrationInfo() {
+  const CalibrationDir installed = store_.calibrations();
   std::map<std::string, json, std::less<>> infos;
   for (const std::string& camera : board_->cameraNames()) {
-    const fs::path file = store_.calibrationPath(camera);
-    std::error_code ec;
-    if (!fs::exists(file, ec)) continue;
+    const auto& c = profile_.camera(camera).config;
     try {
-      const algo::QuasiCalibration calib = readQuasiCalibration(file);
-      const auto& c = profile_.camera(camera).config;
-      calib.requireImageSize({c.width, c.height});
-      infos[camera] = {{"installed", true},
-                       {"bytes", fs::file_size(file)},
-                       {"width", calib.size().width},
-                       {"height", calib.size().height},
-                       {"phase_source", toString(phaseChoiceOf(calib.info().phase_source))}};
+      if (auto calib = installed.calibration(camera, {c.width, c.height}))
+        infos[camera] =
+            calibrationInfoJson(*calib, fs::file_size(installed.calibrationFile(camera)));
     } catch (const std::exception& e) {
-      logWarn("the installed calibration " + file.string() + " is not used: " + e.what());
+      logWarn(std::string(e.what()) + "; not used");
     }
   }
   std::lock_guard lock(mutex_);
@@ -163,16 +160,14 @@ void ScanService::loadCalibrationInfo() {
 }
 
 void ScanService::loadHeadInfo() {
-  const fs::path file = store_.headPath();
-  std::error_code ec;
-  if (!fs::exists(file, ec)) return;
   try {
-    const formats::HeadExtrinsics head = formats::readHeadExtrinsics(file);
-    json info = json::parse(formats::headExtrinsicsJson(head));
-    std::lock_guard lock(mutex_);
-    head_info_ = std::move(info);
+    if (const auto head = store_.calibrations().head()) {
+      json info = json::parse(formats::headExtrinsicsJson(*head));
+      std::lock_guard lock(mutex_);
+      head_info_ = std::move(info);
+    }
   } catch (const std::exception& e) {
-    logWarn("the installed head extrinsics " + file.string() + " are not used: " + e.what());
+    logWarn(std::string(e.what()) + "; not used");
   }
 }
 
@@ -244,7 +239,10 @@ ScanService::Request ScanService::validate(const json& options) const {
 }
 
 std::uint64_t ScanService::scanEstimateBytes(const json& options) const {
-  const Request r = validate(options);
+  return estimateBytes(validate(options));
+}
+
+std::uint64_t ScanService::estimateBytes(const Request& r) const {
   const auto& main = profile_.camera("main").config;
   const std::uint64_t pixels = static_cast<std::uint64_t>(std::max(main.width, 0)) *
                                static_cast<std::uint64_t>(std::max(main.height, 0));
@@ -288,7 +286,7 @@ std::string ScanService::newScanId(std::chrono::system_clock::time_point now) {
 
 json ScanService::stateJson() const {
   const std::string state = job_ ? "scanning" : last_error_ ? "error" : "idle";
-  return {{"state", state}, {"scan", job_ ? json(job_->id) : json(nullptr)}};
+  return {{"state", state}, {"scan", job_ ? json(job_->record.id) : json(nullptr)}};
 }
 
 void ScanService::publishState() {
@@ -296,20 +294,29 @@ void ScanService::publishState() {
 }
 
 std::string ScanService::startScan(const json& options) {
-  std::unique_lock lock(mutex_);
-  if (stopping_) throw ServiceError(503, "the daemon is stopping");
-  if (job_)
-    throw ServiceError(409, "scan " + job_->id + " is " + job_->object.value("state", "running"));
+  std::lock_guard lock(mutex_);
+  refuseUnlessIdleLocked();
   Request request = validate(options);
-  if (!calibration_info_.empty() && request.phase_asked) {
-    auto it = calibration_info_.find("main");
-    if (it != calibration_info_.end() &&
-        it->second["phase_source"] != toString(*request.phase_asked)) {
-      badOption("phase", "the installed calibration was fitted on the " +
-                             it->second["phase_source"].get<std::string>() + " phase");
-    }
+  const auto it = calibration_info_.find("main");
+  if (request.phase_asked && it != calibration_info_.end()) {
+    const std::string fitted_on = it->second.at("phase_source").get<std::string>();
+    if (fitted_on != toString(*request.phase_asked))
+      badOption("phase", "the installed calibration was fitted on the " + fitted_on + " phase");
   }
-  const std::uint64_t need = scanEstimateBytes(options) + options_.free_space_margin_bytes;
+  requireFreeSpace(estimateBytes(request) + options_.free_space_margin_bytes);
+  return queueLocked(std::move(request));
+}
+
+void ScanService::refuseUnlessIdleLocked() const {
+  if (stopping_) throw ServiceError(503, "the daemon is stopping");
+  if (job_) throw ServiceError(409, busyMessageLocked());
+}
+
+std::string ScanService::busyMessageLocked() const {
+  return "scan " + job_->record.id + " is " + toString(job_->record.state);
+}
+
+void ScanService::requireFreeSpace(std::uint64_t need) const {
   try {
     const std::uint64_t free = store_.freeBytes();
     if (free < need)
@@ -319,27 +326,24 @@ std::string ScanService::startScan(const json& options) {
   } catch (const std::system_error& e) {
     logWarn(std::string("free space unknown: ") + e.what());
   }
+}
+
+std::string ScanService::queueLocked(Request request) {
   const auto now = std::chrono::system_clock::now();
   auto job = std::make_unique<Job>();
-  job->id = newScanId(now);
   job->request = std::move(request);
-  job->object = {{"id", job->id},
-                 {"state", "queued"},
-                 {"progress", 0.0},
-                 {"created", isoTime(now)},
-                 {"finished", nullptr},
-                 {"duration_s", nullptr},
-                 {"options", job->request.given},
-                 {"frames", job->request.frames_total},
-                 {"frames_done", 0},
-                 {"files", json::array()},
-                 {"calibrated", calibration_info_.count("main") > 0}};
+  ScanRecord& record = job->record;
+  record.id = newScanId(now);
+  record.created = isoTime(now);
+  record.options = job->request.given;
+  record.frames = job->request.frames_total;
+  record.calibrated = calibration_info_.count("main") > 0;
   job_ = std::move(job);
-  events_.publish("scan", job_->object);
+  events_.publish("scan", job_->record);
   publishState();
-  logInfo("scan " + job_->id + " queued: " + job_->request.given.dump());
+  logInfo("scan " + job_->record.id + " queued: " + job_->request.given.dump());
   cv_.notify_all();
-  return job_->id;
+  return job_->record.id;
 }
 
 void ScanService::worker() {
@@ -350,9 +354,9 @@ void ScanService::worker() {
       cv_.wait(lock, [&] { return stopping_ || job_; });
       if (!job_) break;  // stopping, nothing queued
       job = job_.get();
-      job->object["state"] = "running";
+      job->record.state = ScanState::kRunning;
       job->started = Clock::now();
-      events_.publish("scan", job->object);
+      events_.publish("scan", job->record);
     }
     runJob(*job);  // ends with finishLocked()
   }
@@ -370,185 +374,197 @@ void ScanService::reopenBoard(const std::optional<fs::path>& scene) {
   board_scene_ = scene;
 }
 
-void ScanService::finishLocked(const json& object) {
+void ScanService::finishLocked(const ScanRecord& record) {
   job_.reset();
-  events_.publish("scan", object);
+  events_.publish("scan", record);
   publishState();
   cv_.notify_all();
 }
 
-// `job` is gone once finishLocked() ran: only `id` is used after it.
+// Load, plan, acquire, write the outputs, record and commit; whatever is
+// thrown on the way fails the scan. `job` is gone once it is finished.
 void ScanService::runJob(Job& job) {
-  const Request& req = job.request;
-  const std::string id = job.id;
-  // Retention once the scan is stored, before it is reported finished.
-  const auto retain = [&] {
-    try {
-      store_.applyRetention(options_.retention, id);
-    } catch (const std::exception& e) {
-      logError(std::string("retention: ") + e.what());
-    }
-  };
-  const auto isStopping = [&] {
-    std::lock_guard lock(mutex_);
-    return stopping_;
-  };
-  json result;
-  std::string error;
+  const Request& request = job.request;
+  std::optional<ScanRecord> done;
+  ScanReport report;
   try {
-    store_.beginScan(job.id);
-    const fs::path partial = store_.scansDir() / (".partial-" + job.id);
-    if (isStopping()) throw ScanError("aborted: daemon stopping");
-    if (!board_ || !acquisition_ || req.scene != board_scene_) reopenBoard(req.scene);
+    const fs::path partial = store_.beginScan(job.record.id);
+    if (stopping()) throw ScanError("aborted: daemon stopping");
+    if (!board_ || !acquisition_ || request.scene != board_scene_) reopenBoard(request.scene);
+    const ScanCalibrations calibrations = loadCalibrations(request);
+    const ScanPlan plan = planScan(request.scan, board_->profile().stage);
+    PhaseSink phase(plan, phaseOptions());
+    report = acquire(job, plan, phase, partial);
+    ScanResult output =
+        writeScanOutput(phase, calibrations, outputOptions(request, calibrations), partial);
+    done = doneRecord(job, std::move(output), report);
+    store_.commit(*done);
+  } catch (...) {
+    finishFailed(job, failureOf(std::current_exception()));
+    return;
+  }
+  finishDone(*done, report);
+}
 
-    // The calibration as installed now (a later install applies to later scans).
-    std::optional<algo::QuasiCalibration> calib;
+// The calibrations as installed now (a later install applies to later
+// scans). Main's is read before the head moves: one replaced or damaged on
+// disk since it was installed fails the scan rather than give no cloud.
+ScanCalibrations ScanService::loadCalibrations(const Request& request) const {
+  const auto& main = board_->profile().camera("main").config;
+  ScanCalibrations calibrations;
+  calibrations.main = store_.calibrations().calibration("main", {main.width, main.height});
+  if (request.scan.cameras.size() > 1) calibrations.installed = store_.calibrations();
+  return calibrations;
+}
+
+algo::PhaseOptions ScanService::phaseOptions() const {
+  algo::PhaseOptions options;
+  options.bit_depth = board_->profile().camera("main").config.bit_depth;
+  return options;
+}
+
+// Main's phase is its calibration's, else the one asked for.
+ScanOutputOptions ScanService::outputOptions(const Request& request,
+                                             const ScanCalibrations& calibrations) const {
+  ScanOutputOptions options;
+  options.phase = calibrations.main ? phaseChoiceOf(calibrations.main->info().phase_source)
+                                    : request.phase_asked.value_or(request.phase_default);
+  options.bit_depth = board_->profile().camera("main").config.bit_depth;
+  if (request.scan.cameras.size() > 1) options.ring_cameras = request.scan.cameras;
+  return options;
+}
+
+// The scan on the board: the phase folded and, when asked, the bundle kept.
+ScanReport ScanService::acquire(Job& job, const ScanPlan& plan, PhaseSink& phase,
+                                const fs::path& partial) {
+  const Request& request = job.request;
+  TeeSink sinks;
+  sinks.add(phase);
+  std::unique_ptr<BundleSink> bundle;
+  if (request.save_bundle) {
     const auto& main = board_->profile().camera("main").config;
-    {
-      const fs::path file = store_.calibrationPath("main");
-      std::error_code ec;
-      if (fs::exists(file, ec)) {
-        try {
-          calib = readQuasiCalibration(file);
-          calib->requireImageSize({main.width, main.height});
-        } catch (const std::exception& e) {
-          // Replaced or damaged on disk since it was installed: the scan
-          // fails before the head moves rather than give no cloud silently,
-          // and the status shows the camera uncalibrated until a new PUT.
-          {
-            std::lock_guard lock(mutex_);
-            calibration_info_.erase("main");
-          }
-          throw ScanError("the installed calibration " + file.string() +
-                          " is unusable (install it again): " + e.what());
-        }
-      }
-    }
-    const PhaseChoice choice = calib ? phaseChoiceOf(calib->info().phase_source)
-                                     : req.phase_asked.value_or(req.phase_default);
+    json extra = {{"device", "cylscand " + board_name_},
+                  {"board", board_name_},
+                  {"mode", drivers::toString(request.scan.mode)},
+                  {"exposure_us", main.exposure_us}};
+    if (main.bit_depth > 8) extra["bit_depth"] = main.bit_depth;
+    bundle = std::make_unique<BundleSink>(partial / kBundleDir, plan, request.scan.cameras, extra);
+    sinks.add(*bundle);
+  }
+  logInfo("scan " + job.record.id + " running: " + std::to_string(plan.frames()) + " frames, " +
+          std::string(drivers::toString(request.scan.mode)));
+  ScanReport report = acquisition_->run(request.scan, plan, sinks,
+                                        [&](const ScanProgress& p) { onProgress(job, p); });
+  if (bundle) bundle->commit();
+  return report;
+}
 
-    const ScanPlan plan = planScan(req.scan, board_->profile().stage);
-    algo::PhaseOptions phase_options;
-    phase_options.bit_depth = main.bit_depth;
-    PhaseSink phase(plan, phase_options);
-    TeeSink sinks;
-    sinks.add(phase);
-    std::unique_ptr<BundleSink> bundle;
-    if (req.save_bundle) {
-      json extra = {{"device", "cylscand " + board_name_},
-                    {"board", board_name_},
-                    {"mode", drivers::toString(req.scan.mode)},
-                    {"exposure_us", main.exposure_us}};
-      if (main.bit_depth > 8) extra["bit_depth"] = main.bit_depth;
-      bundle = std::make_unique<BundleSink>(partial / "bundle", plan, req.scan.cameras, extra);
-      sinks.add(*bundle);
-    }
-    logInfo("scan " + job.id + " running: " + std::to_string(plan.frames()) + " frames, " +
-            std::string(drivers::toString(req.scan.mode)));
-    const auto progress = [&](const ScanProgress& p) {
-      frames_total_.inc();
-      std::lock_guard lock(mutex_);
-      if (stopping_) acquisition_->abort();
-      const double fraction =
-          p.frames_total > 0 ? static_cast<double>(p.frames_done) / p.frames_total : 0.0;
-      job.object["frames_done"] = p.frames_done;
-      job.object["progress"] = fraction;
-      events_.publish("progress", {{"id", job.id},
-                                   {"frames_done", p.frames_done},
-                                   {"frames_total", p.frames_total},
-                                   {"set", std::string(formats::toString(p.set))},
-                                   {"progress", fraction}});
-    };
-    const ScanReport report = acquisition_->run(req.scan, plan, sinks, progress);
-    if (bundle) bundle->commit();
+void ScanService::onProgress(Job& job, const ScanProgress& p) {
+  frames_total_.inc();
+  std::lock_guard lock(mutex_);
+  if (stopping_) acquisition_->abort();
+  const double fraction =
+      p.frames_total > 0 ? static_cast<double>(p.frames_done) / p.frames_total : 0.0;
+  job.record.frames_done = p.frames_done;
+  job.record.progress = fraction;
+  events_.publish("progress", {{"id", job.record.id},
+                               {"frames_done", p.frames_done},
+                               {"frames_total", p.frames_total},
+                               {"set", std::string(formats::toString(p.set))},
+                               {"progress", fraction}});
+}
 
-    const algo::PhaseMaps maps = phase.finalize("main");
-    std::vector<std::string> files = {"texture.png", "phase.png"};
-    formats::writePng(partial / "texture.png", textureImage(maps.texture, main.bit_depth));
-    formats::writePng(partial / "phase.png", previewOfMap(absolutePhase(maps, choice)));
-    const bool ring = req.scan.cameras.size() > 1;
-    if (calib) {
-      const cv::Mat xyz = calib->evaluate(absolutePhase(maps, choice));
-      if (!ring) {
-        const formats::PointCloud cloud = cloudOfMaps(xyz, maps.texture);
-        formats::writePly(partial / "cloud.ply", cloud);
-        result["points"] = cloud.size();
-      }
-      const cv::Mat depth = depthOfMap(xyz);
-      formats::writeFloatTiff(partial / "depth.tiff", depth);
-      formats::writePng(partial / "depth.png", previewOfMap(depth));
-      files.insert(files.begin(), "depth.tiff");
-      if (!ring) files.insert(files.begin(), "cloud.ply");
-      files.push_back("depth.png");
-    }
-    if (ring) writeRingClouds(phase, maps, req.scan.cameras, partial, files, result);
-    result["files"] = files;
-    result["calibrated"] = calib.has_value();
-    result["phase"] = toString(choice);
-    result["phase_valid_fraction"] = maps.valid_fraction;
-    result["frames_done"] = report.frames;
-    result["retries"] = report.retries;
-    result["homed"] = report.homed;
-    result["realtime"] = report.realtime;
-    result["board_seconds"] = static_cast<double>(report.duration.count()) / 1e9;
-    result["warnings"] = report.warnings;
-    result["step_jitter"] = jitterJson(report.step_jitter);
-    result["step_reramps"] = report.step_reramps;
-    result["trigger_jitter"] = jitterJson(report.trigger_jitter);
-    if (bundle) result["bundle"] = "bundle";
-
-    // The record as it will be stored: the job shows "running" until the
-    // scan is committed, so "done" is never seen before its files are there.
-    json object;
-    {
-      std::lock_guard lock(mutex_);
-      object = job.object;
-    }
-    for (const auto& [k, v] : result.items())
-      object[k] = v;
-    object["state"] = "done";
-    object["progress"] = 1.0;
-    object["finished"] = isoTime(std::chrono::system_clock::now());
-    object["duration_s"] = secondsSince(job.started);
-    store_.commit(id, object);
-    scans_total_.inc("done");
-    scan_duration_.observe(object["duration_s"].get<double>());
-    retain();
+// The record as it will be stored: the job shows "running" until the scan
+// is committed, so "done" is never seen before its files are there.
+ScanRecord ScanService::doneRecord(const Job& job, ScanResult output,
+                                   const ScanReport& report) const {
+  ScanRecord record;
+  {
     std::lock_guard lock(mutex_);
-    step_jitter_ = report.step_jitter;
-    trigger_jitter_ = report.trigger_jitter;
-    realtime_ = report.realtime;
-    last_error_.reset();
-    finishLocked(object);
-    logInfo("scan " + id + " done in " + std::to_string(object["duration_s"].get<double>()) + " s");
+    record = job.record;
+  }
+  record.state = ScanState::kDone;
+  record.progress = 1.0;
+  record.frames_done = report.frames;
+  record.files = std::move(output.files);
+  record.calibrated = output.calibrated;
+  record.output = std::move(output.figures);
+  record.acquisition = acquisitionFigures(report);
+  if (job.request.save_bundle) record.bundle = std::string(kBundleDir);
+  record.finished = isoTime(std::chrono::system_clock::now());
+  record.duration_s = secondsSince(job.started);
+  return record;
+}
+
+void ScanService::finishDone(const ScanRecord& record, const ScanReport& report) {
+  scans_total_.inc("done");
+  scan_duration_.observe(*record.duration_s);
+  retain(record.id);
+  std::lock_guard lock(mutex_);
+  step_jitter_ = report.step_jitter;
+  trigger_jitter_ = report.trigger_jitter;
+  realtime_ = report.realtime;
+  last_error_.reset();
+  finishLocked(record);
+  logInfo("scan " + record.id + " done in " + std::to_string(*record.duration_s) + " s");
+}
+
+// Recorded with its error and without files; when even that cannot be
+// written, the partial dir goes and the scan is only reported.
+void ScanService::finishFailed(Job& job, const std::string& error) {
+  ScanRecord record;
+  {
+    std::lock_guard lock(mutex_);
+    record = job.record;
+  }
+  record.state = ScanState::kFailed;
+  record.error = error;
+  record.files.clear();
+  record.finished = isoTime(std::chrono::system_clock::now());
+  record.duration_s = secondsSince(job.started);
+  try {
+    store_.commit(record, /*keep_files=*/false);
+  } catch (...) {
+    logError("cannot record the failed scan " + record.id + ": " +
+             failureText(std::current_exception()));
+    store_.discard(record.id);
+  }
+  scans_total_.inc("failed");
+  retain(record.id);
+  std::lock_guard lock(mutex_);
+  last_error_ = error;
+  events_.publish("error", {{"id", record.id}, {"error", error}});
+  finishLocked(record);
+  logError("scan " + record.id + " failed: " + error);
+}
+
+// The error text of a failed scan. A calibration found unusable is shown
+// uncalibrated in the status until it is installed again.
+std::string ScanService::failureOf(const std::exception_ptr& failure) {
+  try {
+    std::rethrow_exception(failure);
+  } catch (const UnusableCalibration& e) {
+    if (!e.camera().empty()) {
+      std::lock_guard lock(mutex_);
+      calibration_info_.erase(e.camera());
+    }
+  } catch (...) {  // told below
+  }
+  return stopping() ? "aborted: daemon stopping" : failureText(failure);
+}
+
+// Retention once a scan is stored, before it is reported finished.
+void ScanService::retain(const std::string& id) {
+  try {
+    store_.applyRetention(options_.retention, id);
   } catch (const std::exception& e) {
-    error = isStopping() ? "aborted: daemon stopping" : e.what();
+    logError(std::string("retention: ") + e.what());
   }
-  if (!error.empty()) {
-    json object;
-    {
-      std::lock_guard lock(mutex_);
-      object = job.object;
-    }
-    object["state"] = "failed";
-    object["error"] = error;
-    object["files"] = json::array();
-    object["finished"] = isoTime(std::chrono::system_clock::now());
-    object["duration_s"] = secondsSince(job.started);
-    try {
-      store_.commit(id, object, /*keep_files=*/false);
-    } catch (const std::exception& e) {
-      logError("cannot record the failed scan " + id + ": " + e.what());
-      store_.discard(id);
-    }
-    scans_total_.inc("failed");
-    retain();
-    std::lock_guard lock(mutex_);
-    last_error_ = error;
-    events_.publish("error", {{"id", id}, {"error", error}});
-    finishLocked(object);
-    logError("scan " + id + " failed: " + error);
-  }
+}
+
+bool ScanService::stopping() const {
+  std::lock_guard lock(mutex_);
+  return stopping_;
 }
 
 // The board's cameras, whether each is scanned (ring plan: all; else main)
@@ -579,33 +595,36 @@ json ScanService::status() const {
   }
   std::lock_guard lock(mutex_);
   json s = stateJson();
-  json out = {{"state", s["state"]},
-              {"board", board_name_},
-              {"version", options_.version},
-              {"current_scan", s["scan"]},
-              {"last_error", last_error_ ? json(*last_error_) : json(nullptr)},
-              {"calibration", {{"main", calibration_info_.count("main") > 0}}},
-              {"cameras", camerasJsonLocked()},
-              {"head", {{"installed", head_info_.has_value()}}},
-              {"scans", store_.count()},
-              {"uptime_s", secondsSince(started_)},
-              {"realtime", realtime_},
-              {"stage", stage},
-              {"light", light}};
+  return {{"state", s["state"]},
+          {"board", board_name_},
+          {"version", options_.version},
+          {"current_scan", s["scan"]},
+          {"last_error", last_error_ ? json(*last_error_) : json(nullptr)},
+          {"calibration", {{"main", calibration_info_.count("main") > 0}}},
+          {"cameras", camerasJsonLocked()},
+          {"head", {{"installed", head_info_.has_value()}}},
+          {"scans", store_.count()},
+          {"uptime_s", secondsSince(started_)},
+          {"realtime", realtime_},
+          {"stage", stage},
+          {"light", light},
+          {"disk_free_bytes", diskFreeBytes()}};
+}
+
+json ScanService::diskFreeBytes() const {
   try {
-    out["disk_free_bytes"] = store_.freeBytes();
+    return store_.freeBytes();
   } catch (const std::exception&) {
-    out["disk_free_bytes"] = nullptr;
+    return nullptr;  // unknown
   }
-  return out;
 }
 
 json ScanService::listScans() const {
   std::lock_guard lock(mutex_);
   json out = json::array();
-  if (job_) out.push_back(job_->object);
-  for (auto& scan : store_.list())
-    if (!job_ || scan["id"] != job_->id) out.push_back(std::move(scan));
+  if (job_) out.push_back(job_->record);
+  for (const ScanRecord& scan : store_.list())
+    if (!job_ || scan.id != job_->record.id) out.push_back(scan);
   return out;
 }
 
@@ -613,16 +632,18 @@ std::optional<json> ScanService::scan(std::string_view id) const {
   if (!isValidScanId(id)) return std::nullopt;
   {
     std::lock_guard lock(mutex_);
-    if (job_ && job_->id == id) return job_->object;
+    if (job_ && job_->record.id == id) return job_->record;
   }
-  return store_.get(id);
+  const std::optional<ScanRecord> stored = store_.get(id);
+  if (!stored) return std::nullopt;
+  return *stored;
 }
 
 std::optional<fs::path> ScanService::scanFile(std::string_view id, std::string_view name) const {
   if (!isValidScanId(id)) return std::nullopt;
   {
     std::lock_guard lock(mutex_);
-    if (job_ && job_->id == id) return std::nullopt;  // not done yet
+    if (job_ && job_->record.id == id) return std::nullopt;  // not done yet
   }
   return store_.file(id, name);
 }
@@ -631,8 +652,7 @@ bool ScanService::deleteScan(std::string_view id) {
   if (!isValidScanId(id)) return false;
   {
     std::lock_guard lock(mutex_);
-    if (job_ && job_->id == id)
-      throw ServiceError(409, "scan " + job_->id + " is " + job_->object.value("state", "running"));
+    if (job_ && job_->record.id == id) throw ServiceError(409, busyMessageLocked());
   }
   const bool removed = store_.remove(id);
   if (removed) logInfo("scan " + std::string(id) + " deleted");
@@ -663,11 +683,7 @@ json ScanService::installCalibration(std::string_view camera, std::string_view b
     throw ServiceError(422,
                        std::string("calibration: ") + e.what() + " (board " + board_name_ + ")");
   }
-  json info = {{"installed", true},
-               {"bytes", bytes.size()},
-               {"width", calib->size().width},
-               {"height", calib->size().height},
-               {"phase_source", toString(phaseChoiceOf(calib->info().phase_source))}};
+  json info = calibrationInfoJson(*calib, bytes.size());
   {
     std::lock_guard install(calibration_mutex_);
     store_.installCalibration(name, span);
@@ -695,101 +711,6 @@ std::optional<fs::path> ScanService::calibrationFile(std::string_view camera) co
   std::error_code ec;
   if (!fs::is_regular_file(file, ec)) return std::nullopt;
   return file;
-}
-
-void ScanService::writeRingClouds(PhaseSink& phase, const algo::PhaseMaps& main_maps,
-                                  const std::vector<std::string>& cameras, const fs::path& partial,
-                                  std::vector<std::string>& files, json& result) {
-  // The head's extrinsics and the calibrations as installed now.
-  std::optional<formats::HeadExtrinsics> head;
-  {
-    const fs::path file = store_.headPath();
-    std::error_code ec;
-    if (fs::exists(file, ec)) {
-      try {
-        head = formats::readHeadExtrinsics(file);
-      } catch (const std::exception& e) {
-        throw ScanError("the installed head extrinsics " + file.string() +
-                        " are unusable (install them again): " + e.what());
-      }
-    }
-  }
-  std::vector<CameraCloud> clouds;
-  json per_camera = json::array();
-  for (const std::string& camera : cameras) {
-    const fs::path file = store_.calibrationPath(camera);
-    std::error_code ec;
-    json entry = {{"camera", camera}, {"calibrated", false}, {"points", 0}};
-    if (!fs::exists(file, ec)) {
-      per_camera.push_back(entry);
-      continue;
-    }
-    algo::QuasiCalibration calib = [&] {
-      try {
-        algo::QuasiCalibration c = readQuasiCalibration(file);
-        const auto& config = board_->profile().camera(camera).config;
-        c.requireImageSize({config.width, config.height});
-        return c;
-      } catch (const std::exception& e) {
-        {
-          std::lock_guard lock(mutex_);
-          calibration_info_.erase(camera);
-        }
-        throw ScanError("the installed calibration " + file.string() +
-                        " is unusable (install it again): " + e.what());
-      }
-    }();
-    const algo::PhaseMaps maps = camera == "main" ? main_maps : phase.finalize(camera);
-    const PhaseChoice choice = phaseChoiceOf(calib.info().phase_source);
-    formats::PointCloud cloud =
-        cloudOfMaps(calib.evaluate(absolutePhase(maps, choice)), maps.texture);
-    fs::create_directories(partial / "clouds");
-    formats::writePly(partial / "clouds" / (camera + ".ply"), cloud);
-    files.push_back("clouds/" + camera + ".ply");
-    entry["calibrated"] = true;
-    entry["points"] = cloud.size();
-    entry["phase"] = toString(choice);
-    entry["phase_valid_fraction"] = maps.valid_fraction;
-    entry["file"] = "clouds/" + camera + ".ply";
-    per_camera.push_back(entry);
-    clouds.push_back({camera, std::move(cloud)});
-  }
-  result["cameras"] = per_camera;
-  // cloud.ply: all calibrated cameras in the head frame when head.json covers
-  // them; else main's alone (said why), or none.
-  std::vector<std::string> missing;
-  for (const CameraCloud& c : clouds) {
-    if (c.camera != "main" && (!head || !head->hasCamera(c.camera))) missing.push_back(c.camera);
-  }
-  std::vector<CameraCloud> merged_parts;
-  std::string note;
-  if (clouds.empty()) {
-    result["cloud"] = "none";
-    result["cloud_note"] = "no camera is calibrated (PUT /api/v1/calibration?camera=NAME)";
-  } else if (missing.empty()) {
-    merged_parts = std::move(clouds);
-    result["cloud"] = "merged";
-  } else {
-    std::string names;
-    for (const std::string& m : missing)
-      names += (names.empty() ? "" : ", ") + m;
-    note = (head ? "the installed head.json has no pose for "
-                 : "no head extrinsics installed (PUT /api/v1/head) for ") +
-           names + ": cloud.ply is main's alone";
-    for (CameraCloud& c : clouds) {
-      if (c.camera == "main") merged_parts.push_back(std::move(c));
-    }
-    result["cloud"] = merged_parts.empty() ? "none" : "main";
-    result["cloud_note"] = note;
-  }
-  if (merged_parts.empty()) {
-    result["points"] = 0;
-    return;
-  }
-  const formats::PointCloud merged = mergeCameraClouds(merged_parts, head ? &*head : nullptr);
-  formats::writePly(partial / "cloud.ply", merged);
-  files.insert(files.begin(), "cloud.ply");
-  result["points"] = merged.size();
 }
 
 json ScanService::installHead(std::string_view text) {
@@ -837,7 +758,7 @@ std::optional<fs::path> ScanService::scanCameraCloud(std::string_view id,
   if (!isValidScanId(id)) return std::nullopt;
   {
     std::lock_guard lock(mutex_);
-    if (job_ && job_->id == id) return std::nullopt;  // not done yet
+    if (job_ && job_->record.id == id) return std::nullopt;  // not done yet
   }
   return store_.cameraCloud(id, camera);
 }

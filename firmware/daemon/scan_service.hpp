@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 // The head as the daemon runs it (HeadService on a drivers::Board): one
 // worker thread runs the scans one at a time through firmware::Acquisition,
-// streams the phase, reconstructs with the installed calibration and commits
-// each scan to the ScanStore; status, lists and events are snapshots taken
-// under a short mutex, so no HTTP thread ever waits for the head.
+// streams the phase, writes the outputs with the installed calibrations
+// (firmware/scan_output.hpp) and commits each scan's record to the
+// ScanStore; status, lists and events are snapshots taken under a short
+// mutex, so no HTTP thread ever waits for the head.
 //
 // States: idle → scanning → idle, or error (status "last_error") after a
 // failed scan until the next successful one. A scan is queued from startScan
@@ -12,6 +13,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <exception>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -25,8 +27,10 @@
 #include "firmware/daemon/event_hub.hpp"
 #include "firmware/daemon/head_service.hpp"
 #include "firmware/daemon/metrics.hpp"
+#include "firmware/daemon/scan_record.hpp"
 #include "firmware/daemon/scan_store.hpp"
 #include "firmware/phase_sink.hpp"
+#include "firmware/scan_output.hpp"
 
 namespace cylscan::firmware {
 
@@ -92,23 +96,38 @@ class ScanService final : public HeadService {
   struct Calibration;
 
   Request validate(const nlohmann::json& options) const;
+  std::uint64_t estimateBytes(const Request& request) const;
+  void refuseUnlessIdleLocked() const;  // 503 stopping, 409 a scan queued or running
+  std::string busyMessageLocked() const;
+  void requireFreeSpace(std::uint64_t need) const;  // 507; statvfs, no lock
+  std::string queueLocked(Request request);
   void worker();
-  void runJob(Job& job);
   void reopenBoard(const std::optional<std::filesystem::path>& scene);
   void loadCalibrationInfo();
   void loadHeadInfo();
-  // The 360° outputs of a ring scan: every calibrated camera's cloud
-  // (clouds/<camera>.ply) and cloud.ply merged in the head frame. Adds to
-  // `files` and `result`.
-  void writeRingClouds(PhaseSink& phase, const algo::PhaseMaps& main_maps,
-                       const std::vector<std::string>& cameras,
-                       const std::filesystem::path& partial, std::vector<std::string>& files,
-                       nlohmann::json& result);
+
+  // One scan, on the worker: the steps of runJob.
+  void runJob(Job& job);
+  ScanCalibrations loadCalibrations(const Request& request) const;
+  algo::PhaseOptions phaseOptions() const;
+  ScanOutputOptions outputOptions(const Request& request,
+                                  const ScanCalibrations& calibrations) const;
+  ScanReport acquire(Job& job, const ScanPlan& plan, PhaseSink& phase,
+                     const std::filesystem::path& partial);
+  void onProgress(Job& job, const ScanProgress& progress);
+  ScanRecord doneRecord(const Job& job, ScanResult output, const ScanReport& report) const;
+  void finishDone(const ScanRecord& record, const ScanReport& report);
+  void finishFailed(Job& job, const std::string& error);
+  std::string failureOf(const std::exception_ptr& failure);
+  void retain(const std::string& id);
+  bool stopping() const;
+
   void publishState();  // mutex_ held
   // The job's end (mutex_ held): no job, its last scan event, the state.
-  void finishLocked(const nlohmann::json& object);
+  void finishLocked(const ScanRecord& record);
   nlohmann::json stateJson() const;  // mutex_ held
   nlohmann::json camerasJsonLocked() const;
+  nlohmann::json diskFreeBytes() const;  // null when unknown
   std::string newScanId(std::chrono::system_clock::time_point now);
 
   ScanServiceOptions options_;

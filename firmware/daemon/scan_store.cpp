@@ -41,15 +41,19 @@ void syncPath(const fs::path& path, bool directory) {
   ::close(fd);
 }
 
-// Why a scan dir's record is unusable, or empty when it is fine.
-std::string checkRecord(const json& scan, const std::string& id) {
-  if (!scan.is_object()) return "scan.json is not a JSON object";
-  if (!scan.contains("id") || scan["id"] != id) return "scan.json's id is not the directory's";
-  if (!scan.contains("state") || !scan["state"].is_string()) return "scan.json has no state";
-  const std::string state = scan["state"];
-  if (state != "done" && state != "failed") return "scan.json's state is '" + state + "'";
-  if (!scan.contains("created") || !scan["created"].is_string()) return "scan.json has no created";
-  return {};
+// The record of a scan dir, checked: ScanRecordError saying why it is unusable.
+ScanRecord readRecord(const fs::path& file, const std::string& id) {
+  const json text = formats::readJsonFile(file, kMaxScanJsonBytes);
+  ScanRecord scan;
+  try {
+    scan = text.get<ScanRecord>();
+  } catch (const ScanRecordError& e) {
+    throw ScanRecordError(std::string("scan.json: ") + e.what());
+  }
+  if (scan.id != id) throw ScanRecordError("scan.json's id is not the directory's");
+  if (!scan.finishedScan())
+    throw ScanRecordError("scan.json's state is '" + toString(scan.state) + "'");
+  return scan;
 }
 
 }  // namespace
@@ -101,10 +105,9 @@ void ScanStore::load() {
       continue;
     }
     std::string fault;
-    json scan;
+    ScanRecord scan;
     try {
-      scan = formats::readJsonFile(entry.path() / "scan.json", kMaxScanJsonBytes);
-      fault = checkRecord(scan, name);
+      scan = readRecord(entry.path() / "scan.json", name);
     } catch (const std::exception& e) {
       fault = e.what();
     }
@@ -137,8 +140,10 @@ void ScanStore::discard(const std::string& id) {
   fs::remove_all(scansDir() / (std::string(kPartialPrefix) + id), ec);
 }
 
-void ScanStore::commit(const std::string& id, const json& scan, bool keep_files) {
+void ScanStore::commit(const ScanRecord& scan, bool keep_files) {
+  const std::string& id = scan.id;
   if (!isValidScanId(id)) throw std::invalid_argument("not a scan id: '" + id + "'");
+  if (!scan.finishedScan()) throw std::invalid_argument("scan " + id + " has not finished");
   const fs::path partial = scansDir() / (std::string(kPartialPrefix) + id);
   const fs::path final_dir = scansDir() / id;
   if (!fs::is_directory(partial)) fs::create_directory(partial);
@@ -146,7 +151,7 @@ void ScanStore::commit(const std::string& id, const json& scan, bool keep_files)
     for (const auto& entry : fs::directory_iterator(partial))
       fs::remove_all(entry.path());
   }
-  formats::writeFileAtomically(partial / "scan.json", scan.dump(2) + "\n");
+  formats::writeFileAtomically(partial / "scan.json", json(scan).dump(2) + "\n");
   syncTree(partial);
   if (fs::exists(final_dir)) throw std::runtime_error("scan " + id + " exists already");
   fs::rename(partial, final_dir);
@@ -159,7 +164,7 @@ void ScanStore::commit(const std::string& id, const json& scan, bool keep_files)
 std::vector<std::string> ScanStore::orderLocked() const {
   std::vector<std::pair<std::string, std::string>> keys;
   for (const auto& [id, e] : scans_)
-    keys.emplace_back(e.scan.value("created", std::string()), id);
+    keys.emplace_back(e.scan.created, id);
   std::sort(keys.begin(), keys.end());
   std::vector<std::string> ids;
   ids.reserve(keys.size());
@@ -168,16 +173,16 @@ std::vector<std::string> ScanStore::orderLocked() const {
   return ids;
 }
 
-std::vector<json> ScanStore::list() const {
+std::vector<ScanRecord> ScanStore::list() const {
   const std::lock_guard lock(mutex_);
-  std::vector<json> out;
+  std::vector<ScanRecord> out;
   const auto ids = orderLocked();
   for (auto it = ids.rbegin(); it != ids.rend(); ++it)
     out.push_back(scans_.find(*it)->second.scan);
   return out;
 }
 
-std::optional<json> ScanStore::get(std::string_view id) const {
+std::optional<ScanRecord> ScanStore::get(std::string_view id) const {
   if (!isValidScanId(id)) return std::nullopt;
   const std::lock_guard lock(mutex_);
   auto it = scans_.find(id);
@@ -274,9 +279,7 @@ std::uint64_t ScanStore::freeBytes() const {
 }
 
 fs::path ScanStore::calibrationPath(std::string_view camera) const {
-  if (!drivers::isCameraName(camera))
-    throw std::invalid_argument("not a camera name: '" + std::string(camera) + "'");
-  return dir_ / "calibration" / (std::string(camera) + ".qcal");
+  return calibrations().calibrationFile(camera);
 }
 
 void ScanStore::installCalibration(std::string_view camera, std::span<const std::byte> bytes) {

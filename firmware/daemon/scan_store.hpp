@@ -22,9 +22,8 @@
 #include <string_view>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "firmware/daemon/daemon_config.hpp"
+#include "firmware/daemon/scan_record.hpp"
 
 namespace cylscan::firmware {
 
@@ -41,16 +40,16 @@ class ScanStore {
 
   // A fresh, empty partial dir for scan `id` (an isValidScanId id).
   std::filesystem::path beginScan(const std::string& id);
-  // Writes `scan` (the scan object; its "files" are the ones present) as
-  // scan.json into the partial dir, fsyncs everything and renames it to
-  // scans/<id>. With keep_files false the partial's other files are removed
-  // first (a failed scan keeps only its record).
-  void commit(const std::string& id, const nlohmann::json& scan, bool keep_files = true);
+  // Writes `scan` (a done or failed scan; its files are the ones present) as
+  // scan.json into the partial dir of its id, fsyncs everything and renames
+  // it to scans/<id>. With keep_files false the partial's other files are
+  // removed first (a failed scan keeps only its record).
+  void commit(const ScanRecord& scan, bool keep_files = true);
   // Removes a partial dir (nothing happens when there is none).
   void discard(const std::string& id);
 
-  std::vector<nlohmann::json> list() const;  // newest first
-  std::optional<nlohmann::json> get(std::string_view id) const;
+  std::vector<ScanRecord> list() const;  // newest first
+  std::optional<ScanRecord> get(std::string_view id) const;
   // `name` one of kScanFileNames; nullopt unless the scan and the file exist.
   std::optional<std::filesystem::path> file(std::string_view id, std::string_view name) const;
   // clouds/<camera>.ply of a finished scan; nullopt unless it exists.
@@ -68,18 +67,20 @@ class ScanStore {
   // Free bytes for an unprivileged writer of the data directory (statvfs).
   std::uint64_t freeBytes() const;
 
+  // calibration/: the installed calibrations and head.json.
+  CalibrationDir calibrations() const { return CalibrationDir(dir_ / "calibration"); }
   // calibration/<camera>.qcal, whether or not it exists.
   std::filesystem::path calibrationPath(std::string_view camera) const;
   // Written atomically (temp, fsync, rename, fsync dir): the old one stays
   // whole until the new one is.
   void installCalibration(std::string_view camera, std::span<const std::byte> bytes);
   // calibration/head.json (the head's extrinsics), written the same way.
-  std::filesystem::path headPath() const { return dir_ / "calibration" / "head.json"; }
+  std::filesystem::path headPath() const { return calibrations().headFile(); }
   void installHead(std::string_view text);
 
  private:
   struct Entry {
-    nlohmann::json scan;
+    ScanRecord scan;
     std::uint64_t bytes = 0;
   };
   // Oldest first: by "created", then id.

@@ -2,13 +2,15 @@
 // The daemon's 360° head on a small ring board: head.json is
 // validated against the board before it is installed, survives a restart, and
 // the status lists the cameras; a ring scan lists every camera with the
-// reason its cloud is missing.
+// reason its cloud is missing, and one whose calibration is damaged fails
+// without leaving any file.
 #include <chrono>
 #include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "algo/quasi_calibration.hpp"
 #include "firmware/daemon/scan_service.hpp"
 #include "tests/support/ring_board.hpp"
 #include "tests/support/temp_dir.hpp"
@@ -41,6 +43,23 @@ struct RingHead {
     return o;
   }
 };
+
+// Valid at every pixel of a 160×128 camera, over any scan's phase.
+std::string everywhereCalibration() {
+  const cv::Size size(160, 128);
+  std::vector<std::uint8_t> valid(static_cast<std::size_t>(size.area()), 1);
+  std::vector<algo::PixelPolynomial> pixels(valid.size());
+  for (algo::PixelPolynomial& p : pixels) {
+    p.phase_inv_half = 1e-4f;
+    p.z[0] = 600.0f;
+  }
+  algo::QuasiCalibrationInfo info;
+  info.pose_count = 8;
+  info.min_poses = 6;
+  const auto bytes =
+      algo::QuasiCalibration(size, std::move(valid), std::move(pixels), info).serialize();
+  return std::string(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+}
 
 template <typename F>
 int statusOf(F&& f) {
@@ -104,6 +123,50 @@ TEST(HeadExtrinsicsService, AnUncalibratedRingScanListsEveryCameraAndNoCloud) {
   EXPECT_EQ(scan["cloud"], "none");
   EXPECT_FALSE(service.scanFile(id, "cloud.ply"));
   EXPECT_FALSE(service.scanCameraCloud(id, "cam90"));
+}
+
+TEST(HeadExtrinsicsService, ARingCameraDamagedOnDiskFailsTheScanAndLeavesNoFile) {
+  RingHead head;
+  ScanService service(head.options());
+  service.installCalibration("main", everywhereCalibration());
+  service.installCalibration("cam90", everywhereCalibration());
+  const std::string good = service.startScan(json::object());
+  ASSERT_TRUE(service.waitUntilIdle(300s));
+  const json scan = *service.scan(good);
+  ASSERT_EQ(scan["state"], "done") << scan.dump();
+  EXPECT_EQ(scan["cloud"], "main");  // no head.json
+  EXPECT_EQ(scan["cameras"][1],
+            json({{"camera", "cam90"},
+                  {"calibrated", true},
+                  {"points", scan["cameras"][1]["points"]},
+                  {"phase", "fused"},
+                  {"phase_valid_fraction", scan["cameras"][1]["phase_valid_fraction"]},
+                  {"file", "clouds/cam90.ply"}}));
+  EXPECT_GT(scan["cameras"][1]["points"].get<std::size_t>(), 1000u);
+  EXPECT_TRUE(service.scanCameraCloud(good, "cam90"));
+
+  {
+    std::ofstream out(head.data_dir.path() / "calibration" / "cam90.qcal", std::ios::trunc);
+    out << "not a calibration any more";
+  }
+  const std::string id = service.startScan(json::object());
+  ASSERT_TRUE(service.waitUntilIdle(300s));
+  const json failed = *service.scan(id);
+  EXPECT_EQ(failed["state"], "failed") << failed.dump();
+  EXPECT_NE(failed["error"].get<std::string>().find("cam90.qcal"), std::string::npos)
+      << failed.dump();
+  EXPECT_EQ(failed["files"], json::array());
+  // Main's files were made before cam90's turn: only the record is left.
+  std::vector<std::string> left;
+  for (const auto& e : fs::recursive_directory_iterator(service.store().scansDir() / id))
+    left.push_back(e.path().filename().string());
+  EXPECT_EQ(left, std::vector<std::string>{"scan.json"});
+  EXPECT_FALSE(fs::exists(service.store().scansDir() / (".partial-" + id)));
+  // cam90 shows uncalibrated until it is installed again; main still is.
+  const json cameras = service.status()["cameras"];
+  EXPECT_EQ(cameras[0]["calibrated"], true) << cameras;
+  EXPECT_EQ(cameras[1]["calibrated"], false) << cameras;
+  EXPECT_EQ(service.status()["last_error"], failed["error"]);
 }
 
 }  // namespace

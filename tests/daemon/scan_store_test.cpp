@@ -17,8 +17,13 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using test_support::TempDir;
 
-json record(const std::string& id, const std::string& created, const std::string& state = "done") {
-  return {{"id", id}, {"state", state}, {"created", created}, {"files", json::array()}};
+ScanRecord record(const std::string& id, const std::string& created,
+                  ScanState state = ScanState::kDone) {
+  ScanRecord r;
+  r.id = id;
+  r.state = state;
+  r.created = created;
+  return r;
 }
 
 // A scan with one file of `bytes` bytes, committed.
@@ -26,13 +31,13 @@ void addScan(ScanStore& store, const std::string& id, const std::string& created
              std::size_t bytes = 10) {
   const fs::path partial = store.beginScan(id);
   std::ofstream(partial / "texture.png") << std::string(bytes, 'x');
-  store.commit(id, record(id, created));
+  store.commit(record(id, created));
 }
 
 std::vector<std::string> ids(const ScanStore& store) {
   std::vector<std::string> out;
   for (const auto& s : store.list())
-    out.push_back(s["id"]);
+    out.push_back(s.id);
   return out;
 }
 
@@ -59,7 +64,7 @@ TEST(ScanStore, ACommittedScanIsListedWithItsFilesAndSurvivesReopen) {
     ScanStore store(dir.path());
     addScan(store, "20261201-100000-0001", "2026-12-01T10:00:00Z", 100);
     ASSERT_TRUE(store.get("20261201-100000-0001"));
-    EXPECT_EQ((*store.get("20261201-100000-0001"))["state"], "done");
+    EXPECT_EQ(store.get("20261201-100000-0001")->state, ScanState::kDone);
     const auto file = store.file("20261201-100000-0001", "texture.png");
     ASSERT_TRUE(file);
     EXPECT_EQ(fs::file_size(*file), 100u);
@@ -78,11 +83,11 @@ TEST(ScanStore, AFailedScanKeepsOnlyItsRecord) {
   ScanStore store(dir.path());
   const fs::path partial = store.beginScan("20261201-100000-0002");
   std::ofstream(partial / "texture.png") << "x";
-  json failed = record("20261201-100000-0002", "2026-12-01T10:00:00Z", "failed");
-  failed["error"] = "home switch never fired";
-  store.commit("20261201-100000-0002", failed, /*keep_files=*/false);
+  ScanRecord failed = record("20261201-100000-0002", "2026-12-01T10:00:00Z", ScanState::kFailed);
+  failed.error = "home switch never fired";
+  store.commit(failed, /*keep_files=*/false);
   EXPECT_FALSE(store.file("20261201-100000-0002", "texture.png"));
-  EXPECT_EQ((*store.get("20261201-100000-0002"))["error"], "home switch never fired");
+  EXPECT_EQ(store.get("20261201-100000-0002")->error, "home switch never fired");
 }
 
 TEST(ScanStore, ACorruptRecordIsSetAsideAndTheOthersKept) {
@@ -103,6 +108,36 @@ TEST(ScanStore, ACorruptRecordIsSetAsideAndTheOthersKept) {
   // Set aside once: a second open finds the same.
   ScanStore again(dir.path());
   EXPECT_EQ(again.count(), 1u);
+}
+
+TEST(ScanStore, ARecordOfTheWrongShapeIsSetAsideAndAnEarlierOneKept) {
+  TempDir dir;
+  const auto scanDir = [&](const std::string& id, const json& record) {
+    fs::create_directories(dir.path() / "scans" / id);
+    std::ofstream(dir.path() / "scans" / id / "scan.json") << record.dump();
+  };
+  const std::string created = "2026-12-01T10:00:00Z";
+  scanDir("20261201-100000-0001", {{"id", "20261201-100000-0001"},
+                                   {"state", "done"},
+                                   {"created", created}});  // an earlier version's
+  scanDir("20261201-100000-0002",
+          {{"id", "20261201-100000-0002"}, {"state", "running"}, {"created", created}});
+  scanDir(
+      "20261201-100000-0003",
+      {{"id", "20261201-100000-0003"}, {"state", "done"}, {"created", created}, {"frames", "ten"}});
+  scanDir("20261201-100000-0004",
+          {{"id", "20261201-100000-0009"}, {"state", "done"}, {"created", created}});
+  ScanStore store(dir.path());
+  EXPECT_EQ(ids(store), std::vector<std::string>{"20261201-100000-0001"});
+  for (const char* broken : {"0002", "0003", "0004"})
+    EXPECT_TRUE(
+        fs::exists(dir.path() / "scans" / (".broken-20261201-100000-" + std::string(broken))))
+        << broken;
+  EXPECT_EQ(store.get("20261201-100000-0001")->created, created);
+  // A scan that has not finished is no record to store.
+  ScanRecord running = record("20261201-100000-0005", created, ScanState::kRunning);
+  store.beginScan(running.id);
+  EXPECT_THROW(store.commit(running), std::invalid_argument);
 }
 
 TEST(ScanStore, ListsNewestFirstAndDeletes) {
