@@ -294,16 +294,23 @@ void ScanService::publishState() {
 }
 
 std::string ScanService::startScan(const json& options) {
+  // The plan and statvfs take a while (a ring plan: ~10^5 steps): they run
+  // without mutex_ so status() never waits for them, and the refusals of a
+  // busy or stopping head are checked again once they are done.
+  std::optional<std::string> main_fitted_on;
+  {
+    std::lock_guard lock(mutex_);
+    refuseUnlessIdleLocked();
+    const auto it = calibration_info_.find("main");
+    if (it != calibration_info_.end())
+      main_fitted_on = it->second.at("phase_source").get<std::string>();
+  }
+  Request request = validate(options);
+  if (request.phase_asked && main_fitted_on && *main_fitted_on != toString(*request.phase_asked))
+    badOption("phase", "the installed calibration was fitted on the " + *main_fitted_on + " phase");
+  requireFreeSpace(estimateBytes(request) + options_.free_space_margin_bytes);
   std::lock_guard lock(mutex_);
   refuseUnlessIdleLocked();
-  Request request = validate(options);
-  const auto it = calibration_info_.find("main");
-  if (request.phase_asked && it != calibration_info_.end()) {
-    const std::string fitted_on = it->second.at("phase_source").get<std::string>();
-    if (fitted_on != toString(*request.phase_asked))
-      badOption("phase", "the installed calibration was fitted on the " + fitted_on + " phase");
-  }
-  requireFreeSpace(estimateBytes(request) + options_.free_space_margin_bytes);
   return queueLocked(std::move(request));
 }
 
@@ -365,12 +372,24 @@ void ScanService::worker() {
   cv_.notify_all();
 }
 
+// The old board is closed before the new one is opened (they share the
+// lines), and neither is done under acquisition_mutex_: status() shows no
+// stage meanwhile instead of waiting for the cameras to open.
 void ScanService::reopenBoard(const std::optional<fs::path>& scene) {
+  std::unique_ptr<Acquisition> old_acquisition;
+  std::unique_ptr<drivers::Board> old_board;
+  {
+    std::lock_guard lock(acquisition_mutex_);
+    old_acquisition = std::move(acquisition_);
+    old_board = std::move(board_);
+  }
+  old_acquisition.reset();
+  old_board.reset();
+  auto board = std::make_unique<drivers::Board>(drivers::Board::open(options_.board, scene));
+  auto acquisition = std::make_unique<Acquisition>(*board);
   std::lock_guard lock(acquisition_mutex_);
-  acquisition_.reset();
-  board_.reset();
-  board_ = std::make_unique<drivers::Board>(drivers::Board::open(options_.board, scene));
-  acquisition_ = std::make_unique<Acquisition>(*board_);
+  board_ = std::move(board);
+  acquisition_ = std::move(acquisition);
   board_scene_ = scene;
 }
 
@@ -593,6 +612,8 @@ json ScanService::status() const {
       light = o.light;
     }
   }
+  // statvfs before mutex_ too: a slow file system holds up this answer only.
+  const json disk_free = diskFreeBytes();
   std::lock_guard lock(mutex_);
   json s = stateJson();
   return {{"state", s["state"]},
@@ -608,7 +629,7 @@ json ScanService::status() const {
           {"realtime", realtime_},
           {"stage", stage},
           {"light", light},
-          {"disk_free_bytes", diskFreeBytes()}};
+          {"disk_free_bytes", disk_free}};
 }
 
 json ScanService::diskFreeBytes() const {

@@ -4,7 +4,7 @@
 // streams the phase, writes the outputs with the installed calibrations
 // (firmware/scan_output.hpp) and commits each scan's record to the
 // ScanStore; status, lists and events are snapshots taken under a short
-// mutex, so no HTTP thread ever waits for the head.
+// mutex, so no HTTP thread ever waits for the head, the plan or the disk.
 //
 // States: idle → scanning → idle, or error (status "last_error") after a
 // failed scan until the next successful one. A scan is queued from startScan
@@ -95,6 +95,8 @@ class ScanService final : public HeadService {
   struct Job;      // the queued or running scan
   struct Calibration;
 
+  // Checks the options and plans the scan; reads only what the constructor
+  // set, so it needs no lock.
   Request validate(const nlohmann::json& options) const;
   std::uint64_t estimateBytes(const Request& request) const;
   void refuseUnlessIdleLocked() const;  // 503 stopping, 409 a scan queued or running
