@@ -23,6 +23,7 @@
 #include "firmware/acquisition.hpp"
 #include "firmware/bundle_sink.hpp"
 #include "firmware/phase_sink.hpp"
+#include "firmware/scan_output.hpp"
 #include "firmware/scan_plan.hpp"
 #include "firmware/shipped_boards.hpp"
 #include "formats/images.hpp"
@@ -173,18 +174,20 @@ void runScan(const ScanRequest& request) {
   }
   if (!request.out.empty()) summary["out"] = request.out;
   if (calib) {
-    const algo::PhaseMaps maps = phase.finalize("main");
-    const PhaseChoice choice = request.phase.empty()
-                                   ? firmware::phaseChoiceOf(calib->info().phase_source)
-                                   : parsePhaseChoice(request.phase);
-    const cv::Mat xyz = calib->evaluate(absolutePhase(maps, choice));
-    const formats::PointCloud cloud = cloudOfMaps(xyz, maps.texture);
-    formats::writePly(request.cloud, cloud);
-    if (!request.depth.empty()) formats::writeFloatTiff(request.depth, depthOfMap(xyz));
+    // The daemon's output step, main's cloud and depth map only.
+    firmware::ScanOutputOptions output;
+    output.phase = request.phase.empty() ? firmware::phaseChoiceOf(calib->info().phase_source)
+                                         : parsePhaseChoice(request.phase);
+    output.cloud = request.cloud;
+    output.depth = request.depth;
+    output.previews = false;
+    firmware::ScanCalibrations calibrations;
+    calibrations.main = std::move(calib);
+    const firmware::ScanResult result = firmware::writeScanOutput(phase, calibrations, output, {});
     summary["cloud"] = request.cloud;
-    summary["points"] = cloud.size();
-    summary["phase"] = toString(choice);
-    summary["phase_valid_fraction"] = maps.valid_fraction;
+    summary["points"] = result.figures.points.value_or(0);
+    summary["phase"] = toString(result.figures.phase);
+    summary["phase_valid_fraction"] = result.figures.phase_valid_fraction;
   }
   summary["timings_ms"] = {{"acquire", acquire_ms}, {"total", total.elapsedMs()}};
   if (request.json) {
@@ -204,7 +207,7 @@ void runScan(const ScanRequest& request) {
   for (const auto& w : report.warnings)
     std::cout << "  warning: " << w << "\n";
   if (!request.out.empty()) std::cout << "  bundle -> " << request.out << "\n";
-  if (calib)
+  if (summary.contains("cloud"))
     std::cout << "  cloud: " << summary["points"].get<std::size_t>() << " points -> "
               << request.cloud << "\n";
 }
