@@ -227,7 +227,7 @@ ScanService::Request ScanService::validate(const json& options) const {
         *mode == "continuous" ? drivers::ScanMode::Continuous : drivers::ScanMode::StopAndGo;
   if (frames) r.scan.frames_high = r.scan.frames_low = *frames;
   // A ring plan (the 360° head) scans every camera of the board; a sets plan
-  // main only, as before.
+  // scans main only (its sets are main's).
   if (r.scan.plan != drivers::PlanKind::Ring) r.scan.cameras = {"main"};
   try {
     const ScanPlan plan = planScan(r.scan, profile_.stage);
