@@ -32,19 +32,11 @@ using test_support::TempDir;
 // Generous bounds on waits for the virtual head (not timing assertions).
 constexpr auto kScanWait = 300s;
 
-const char* kPlane = R"(name = "wall"
-ambient = 0.03
-[[object]]
-type = "plane"
-point = [0.0, 0.0, 590.0]
-normal = [0.1, -0.05, -1.0]
-)";
-
 struct Head {
   TempDir board_dir, data_dir;
   fs::path board;
   explicit Head(const std::vector<std::pair<std::string, std::string>>& replace = {})
-      : board(smallBoard(board_dir, kPlane, replace)) {}
+      : board(smallBoard(board_dir, test_support::kWallScene, replace)) {}
   ScanServiceOptions options() const {
     ScanServiceOptions o;
     o.board = board;

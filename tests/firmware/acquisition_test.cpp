@@ -35,14 +35,6 @@ using test_support::smallBoard;
 using test_support::TempDir;
 constexpr double kPi = std::numbers::pi;
 
-const char* kPlane = R"(name = "wall"
-ambient = 0.03
-[[object]]
-type = "plane"
-point = [0.0, 0.0, 590.0]
-normal = [0.1, -0.05, -1.0]
-)";
-
 struct Scan {
   drivers::Board board;
   ScanOptions options;
@@ -87,7 +79,7 @@ PhaseError compareWithHead(sim::VirtualHead& head, const cv::Mat& absolute, doub
 
 TEST(Acquisition, StopAndGoStreamsTheHeadsPhaseAndSavesTheSameBundle) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane));
+  Scan scan(smallBoard(dir, test_support::kWallScene));
   algo::PhaseOptions phase_options;
   PhaseSink phase(scan.plan, phase_options);
   BundleSink bundle(dir.path() / "bundle", scan.plan, {"main"}, nlohmann::json::object());
@@ -142,12 +134,13 @@ TEST(Acquisition, StopAndGoStreamsTheHeadsPhaseAndSavesTheSameBundle) {
 
 TEST(Acquisition, ContinuousModeGivesTheSamePhaseInFewerSeconds) {
   TempDir dir;
-  Scan stop(smallBoard(dir, kPlane));
+  Scan stop(smallBoard(dir, test_support::kWallScene));
   PhaseSink stop_phase(stop.plan, {});
   Acquisition stop_acquisition(stop.board);
   const ScanReport stop_report = stop_acquisition.run(stop.options, stop.plan, stop_phase);
 
-  Scan sweep(smallBoard(dir, kPlane, {{"mode = \"stop\"", "mode = \"continuous\""}}));
+  Scan sweep(
+      smallBoard(dir, test_support::kWallScene, {{"mode = \"stop\"", "mode = \"continuous\""}}));
   ASSERT_EQ(sweep.options.mode, drivers::ScanMode::Continuous);
   PhaseSink sweep_phase(sweep.plan, {});
   Acquisition sweep_acquisition(sweep.board);
@@ -184,7 +177,7 @@ struct StreamedScan {
 };
 StreamedScan scanWith(const std::vector<std::pair<std::string, std::string>>& replace) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane, replace));
+  Scan scan(smallBoard(dir, test_support::kWallScene, replace));
   PhaseSink phase(scan.plan, {});
   Acquisition acquisition(scan.board);
   StreamedScan out;
@@ -243,7 +236,7 @@ TEST(Acquisition, ATriggeredStreamGivesTheFrameItsImageLatencyAfterTheTrigger) {
 
 TEST(Acquisition, ACameraThatStreamsCannotSweep) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane,
+  Scan scan(smallBoard(dir, test_support::kWallScene,
                        {{"mode = \"stop\"", "mode = \"continuous\""},
                         mainCamera("trigger = \"gpio\"\nstream = \"continuous\"")}));
   PhaseSink phase(scan.plan, {});
@@ -268,7 +261,7 @@ struct FailedScan {
 template <class Fault>
 FailedScan failScan(const std::vector<std::pair<std::string, std::string>>& replace, Fault fault) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane, replace));
+  Scan scan(smallBoard(dir, test_support::kWallScene, replace));
   PhaseSink phase(scan.plan, {});
   BundleSink bundle(dir.path() / "bundle", scan.plan, {"main"}, nlohmann::json::object());
   TeeSink sinks;
@@ -299,7 +292,7 @@ void expectSafe(const FailedScan& f) {
 
 TEST(Acquisition, ACameraTimeoutIsRetriedOnce) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane));
+  Scan scan(smallBoard(dir, test_support::kWallScene));
   scan.head().dropFrames("main", 1);
   PhaseSink phase(scan.plan, {});
   Acquisition acquisition(scan.board);
@@ -313,7 +306,8 @@ TEST(Acquisition, ACameraTimeoutIsRetriedOnce) {
 
 TEST(Acquisition, AContinuousSetIsSweptAgainAfterATimeout) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane, {{"mode = \"stop\"", "mode = \"continuous\""}}));
+  Scan scan(
+      smallBoard(dir, test_support::kWallScene, {{"mode = \"stop\"", "mode = \"continuous\""}}));
   scan.options.cameras = {"main", "aux"};
   PhaseSink phase(scan.plan, {});
   Acquisition acquisition(scan.board);
@@ -354,7 +348,8 @@ TEST(Acquisition, AHomeSwitchThatNeverFiresFailsTheScan) {
   // The stage starts 200° away from home and may travel only 90° to find it.
   TempDir dir;
   const fs::path board =
-      smallBoard(dir, kPlane, {{"home_max_travel_deg = 370.0", "home_max_travel_deg = 90.0"}});
+      smallBoard(dir, test_support::kWallScene,
+                 {{"home_max_travel_deg = 370.0", "home_max_travel_deg = 90.0"}});
   std::ofstream(board / "board.toml", std::ios::app) << "[sim.head.stage]\ninitial_deg = 200.0\n";
   Scan scan(board);
   PhaseSink phase(scan.plan, {});
@@ -386,7 +381,7 @@ TEST(Acquisition, LostStepsRaiseTheDriversFaultInput) {
 
 TEST(Acquisition, TheStageFaultInputFailsTheScan) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane));
+  Scan scan(smallBoard(dir, test_support::kWallScene));
   PhaseSink phase(scan.plan, {});
   Acquisition acquisition(scan.board);
   try {
@@ -403,7 +398,7 @@ TEST(Acquisition, TheStageFaultInputFailsTheScan) {
 
 TEST(Acquisition, AbortStopsTheScanSafely) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane));
+  Scan scan(smallBoard(dir, test_support::kWallScene));
   PhaseSink phase(scan.plan, {});
   Acquisition acquisition(scan.board);
   int seen = 0;
@@ -427,7 +422,7 @@ TEST(Acquisition, AbortStopsTheScanSafely) {
 // same number of step edges and triggers.
 TEST(Acquisition, EachReportTimesTheEdgesOfItsOwnScan) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane));
+  Scan scan(smallBoard(dir, test_support::kWallScene));
   Acquisition acquisition(scan.board);
   std::vector<ScanReport> reports;
   for (int i = 0; i < 3; ++i) {
@@ -447,7 +442,7 @@ TEST(Acquisition, EachReportTimesTheEdgesOfItsOwnScan) {
 // triggered once more and a second silence an error.
 TEST(Acquisition, AStillIsOneExposureOfEachCameraWithTheStageAtRest) {
   TempDir dir;
-  Scan scan(smallBoard(dir, kPlane));
+  Scan scan(smallBoard(dir, test_support::kWallScene));
   Acquisition acquisition(scan.board);
   const std::int64_t position = scan.head().stage().position();
   StillOptions options;

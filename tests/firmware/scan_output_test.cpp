@@ -29,14 +29,6 @@ namespace {
 namespace fs = std::filesystem;
 using test_support::TempDir;
 
-const char* kPlane = R"(name = "wall"
-ambient = 0.03
-[[object]]
-type = "plane"
-point = [0.0, 0.0, 590.0]
-normal = [0.1, -0.05, -1.0]
-)";
-
 // The phase of one acquisition, kept for every test of the suite (the plan
 // must outlive the sink).
 struct Acquired {
@@ -63,7 +55,7 @@ struct Acquired {
 
 Acquired& mainScan() {
   static TempDir board_dir;
-  static Acquired scan(test_support::smallBoard(board_dir, kPlane), {"main"}, 5);
+  static Acquired scan(test_support::smallBoard(board_dir, test_support::kWallScene), {"main"}, 5);
   return scan;
 }
 

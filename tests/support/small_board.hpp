@@ -18,6 +18,15 @@ namespace cylscan::test_support {
 // board/sim at 160×128 (same fields of view), with an ideal projector (no
 // eccentricity, so the analytic phase is exact), the given scene and any
 // extra lines replacing keys of board.toml.
+// A wall a little tilted to the camera: the scene of the small board's scans.
+inline constexpr const char* kWallScene = R"(name = "wall"
+ambient = 0.03
+[[object]]
+type = "plane"
+point = [0.0, 0.0, 590.0]
+normal = [0.1, -0.05, -1.0]
+)";
+
 inline std::filesystem::path smallBoard(
     const TempDir& dir, const std::string& scene_toml,
     const std::vector<std::pair<std::string, std::string>>& replace = {}) {
