@@ -55,7 +55,7 @@ cv::Size checkedSize(cv::Size size) {
 }
 
 std::string where(FringeSet set, int k) {
-  return "fold(" + std::string(fringeSetName(set)) + ", k=" + std::to_string(k) + "): ";
+  return "fold(" + std::string(toString(set)) + ", k=" + std::to_string(k) + "): ";
 }
 
 }  // namespace
@@ -117,7 +117,7 @@ void PhaseEngine::fold(FringeSet set, int k, const cv::Mat& frame) {
   Impl& im = *impl_;
   const int n = static_cast<int>(im.folded[index(set)].size());
   if (k < 0 || k >= n) {
-    throw std::out_of_range(where(set, k) + "the " + std::string(fringeSetName(set)) + " set has " +
+    throw std::out_of_range(where(set, k) + "the " + std::string(toString(set)) + " set has " +
                             std::to_string(n) + " frames (k = 0.." + std::to_string(n - 1) + ")");
   }
   if (frame.empty()) throw std::invalid_argument(where(set, k) + "the frame is empty");
@@ -143,11 +143,11 @@ void PhaseEngine::fold(FringeSet set, int k, const cv::Mat& frame) {
   }
   if (im.folded[index(set)][static_cast<std::size_t>(k)]) {
     throw std::logic_error(where(set, k) + "frame " + std::to_string(k) + " of the " +
-                           std::string(fringeSetName(set)) + " set was already folded");
+                           std::string(toString(set)) + " set was already folded");
   }
   if (im.active && *im.active != set) {
     const FringeSet a = *im.active;
-    throw std::logic_error(where(set, k) + "the " + std::string(fringeSetName(a)) + " set has " +
+    throw std::logic_error(where(set, k) + "the " + std::string(toString(a)) + " set has " +
                            std::to_string(im.count[index(a)]) + " of " +
                            std::to_string(im.folded[index(a)].size()) +
                            " frames folded; fold all frames of one set before the other");

@@ -19,11 +19,9 @@
 
 #include <opencv2/core.hpp>
 
-namespace cylscan::algo {
+#include "common/vocabulary.hpp"
 
-// Which absolute phase the polynomials take (recorded in the file; the
-// reconstruction must feed the same one).
-enum class PhaseSource : std::uint32_t { kHigh = 0, kFused = 1 };
+namespace cylscan::algo {
 
 // One pixel's model, stored as is in the file: 14 little-endian float32.
 struct PixelPolynomial {
@@ -37,7 +35,7 @@ static_assert(sizeof(PixelPolynomial) == 56);
 
 // What the file records besides the polynomials.
 struct QuasiCalibrationInfo {
-  PhaseSource phase_source = PhaseSource::kFused;
+  PhaseSource phase_source = PhaseSource::Fused;
   std::uint32_t pose_count = 0;
   std::uint32_t min_poses = 0;
   float pooled_rmse_mm = std::numeric_limits<float>::quiet_NaN();          // Eq. (12), once known
@@ -135,7 +133,7 @@ class QuasiCalibration {
 
 struct QuasiCalibrationOptions {
   int min_poses = 6;  // valid poses a pixel needs; > 4 (a cubic plus a residual)
-  PhaseSource phase_source = PhaseSource::kFused;
+  PhaseSource phase_source = PhaseSource::Fused;
   double min_phase_range_rad = 1e-3;  // a pixel whose Φ barely changed is invalid
 };
 

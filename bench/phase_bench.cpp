@@ -15,8 +15,8 @@
 
 namespace {
 
+using cylscan::FringeSet;
 using cylscan::algo::CompactPhase;
-using cylscan::algo::FringeSet;
 using cylscan::algo::FringeSetGeometry;
 using cylscan::algo::PhaseEngine;
 using cylscan::algo::PhaseMaps;

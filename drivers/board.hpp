@@ -30,7 +30,7 @@ class Board {
   // loads the profile, constructs its backends and configures every camera
   // with its profile settings (not started). `scene` replaces the virtual
   // head's default scene (an error on a hardware board).
-  // Throws sim::ConfigError for a bad profile, GpioError / CameraError when a
+  // Throws ConfigError for a bad profile, GpioError / CameraError when a
   // backend cannot be opened or was not built.
   static Board open(const std::filesystem::path& profile,
                     const std::optional<std::filesystem::path>& scene = std::nullopt);

@@ -6,11 +6,9 @@
 #include <set>
 #include <stdexcept>
 
-#include "drivers/sim/toml_reader.hpp"
+#include "drivers/toml_reader.hpp"
 
 namespace cylscan::drivers {
-
-using sim::TableReader;
 
 namespace {
 
@@ -212,60 +210,6 @@ CameraProfile readCamera(TableReader r, const GpioProfile& gpio) {
   return c;
 }
 
-ScanProfile readScan(TableReader r) {
-  ScanProfile s;
-  s.frames_high = r.integer("frames_high", s.frames_high);
-  r.require(s.frames_high >= 3 && s.frames_high <= 1000, "frames_high", "must be in [3, 1000]");
-  s.frames_low = r.integer("frames_low", s.frames_low);
-  r.require(s.frames_low >= 3 && s.frames_low <= 1000, "frames_low", "must be in [3, 1000]");
-  s.high_start_deg = r.number("high_start_deg", s.high_start_deg);
-  r.require(s.high_start_deg >= 0 && s.high_start_deg < 360, "high_start_deg",
-            "must be in [0, 360)");
-  s.low_start_deg = r.number("low_start_deg", s.low_start_deg);
-  r.require(s.low_start_deg >= 0 && s.low_start_deg < 360, "low_start_deg", "must be in [0, 360)");
-  const std::string mode = r.string("mode", "stop");
-  if (mode == "stop") {
-    s.mode = ScanMode::StopAndGo;
-  } else if (mode == "continuous") {
-    s.mode = ScanMode::Continuous;
-  } else {
-    r.fail("mode", "unknown mode '" + mode + "' (\"stop\" or \"continuous\")");
-  }
-  s.frame_timeout_ms = r.positive("frame_timeout_ms", s.frame_timeout_ms);
-  if (r.has("settle_ms")) s.settle_ms = r.nonNegative("settle_ms", 0.0);
-  s.save_bundle = r.boolean("save_bundle", s.save_bundle);
-  s.verify_steps = r.boolean("verify_steps", s.verify_steps);
-  s.period_high_deg = r.positive("period_high_deg", s.period_high_deg);
-  s.period_low_deg = r.positive("period_low_deg", s.period_low_deg);
-  r.require(s.period_low_deg != s.period_high_deg, "period_low_deg",
-            "must differ from period_high_deg (two wavelengths)");
-  const std::string plan = r.string("plan", "sets");
-  if (plan == "sets") {
-    s.plan = PlanKind::Sets;
-  } else if (plan == "ring") {
-    s.plan = PlanKind::Ring;
-  } else {
-    r.fail("plan", "unknown plan '" + plan + "' (\"sets\" or \"ring\")");
-  }
-  s.step_deg = r.nonNegative("step_deg", s.step_deg);
-  r.require(s.plan == PlanKind::Ring || !r.has("step_deg"), "step_deg",
-            "only with plan = \"ring\" (the sets plan steps by period / frames)");
-  s.high_half_start_deg = r.number("high_half_start_deg", s.high_half_start_deg);
-  r.require(s.high_half_start_deg >= 0 && s.high_half_start_deg < 360, "high_half_start_deg",
-            "must be in [0, 360)");
-  if (s.plan == PlanKind::Ring) {
-    r.require(!r.has("frames_low") || s.frames_low == s.frames_high, "frames_low",
-              "must equal frames_high with plan = \"ring\" (both sweeps have the same frames)");
-    s.frames_low = s.frames_high;
-    for (const char* key : {"high_start_deg", "low_start_deg"}) {
-      r.require(!r.has(key), key,
-                "not used with plan = \"ring\" (the planner computes the sweeps' starts)");
-    }
-  }
-  r.finish();
-  return s;
-}
-
 fs::path existingFile(TableReader& r, std::string_view key, const fs::path& dir) {
   fs::path p = dir / r.string(key, "");
   std::error_code ec;
@@ -287,10 +231,6 @@ std::string_view toString(CameraBackendKind backend) {
   return "?";
 }
 
-std::string_view toString(PlanKind plan) {
-  return plan == PlanKind::Ring ? "ring" : "sets";
-}
-
 std::string_view toString(TriggerMode trigger) {
   switch (trigger) {
     case TriggerMode::GpioPulse:
@@ -307,8 +247,11 @@ std::string_view toString(FrameStream stream) {
   return stream == FrameStream::PerExposure ? "per-exposure" : "continuous";
 }
 
-std::string_view toString(ScanMode mode) {
-  return mode == ScanMode::StopAndGo ? "stop" : "continuous";
+const toml::table& BoardProfile::scanTable() const {
+  static const toml::table kNone;
+  if (document == nullptr) return kNone;
+  const toml::table* scan = (*document)["scan"].as_table();
+  return scan != nullptr ? *scan : kNone;
 }
 
 const CameraProfile& BoardProfile::camera(std::string_view camera_name) const {
@@ -318,11 +261,13 @@ const CameraProfile& BoardProfile::camera(std::string_view camera_name) const {
   throw std::invalid_argument("board '" + name + "': no camera '" + std::string(camera_name) + "'");
 }
 
-BoardProfile parseBoardProfile(const toml::table& table, const fs::path& file) {
+BoardProfile parseBoardProfile(toml::table parsed, const fs::path& file) {
   const std::string f = file.string();
   const fs::path dir = file.parent_path();
-  TableReader root(table, f, "");
   BoardProfile b;
+  b.document = std::make_shared<const toml::table>(std::move(parsed));
+  const toml::table& table = *b.document;
+  TableReader root(table, f, "");
   b.file = file;
 
   const toml::table* board = root.table("board");
@@ -356,19 +301,7 @@ BoardProfile parseBoardProfile(const toml::table& table, const fs::path& file) {
     b.cameras.push_back(std::move(c));
   }
 
-  if (const toml::table* t = root.table("scan")) b.scan = readScan(TableReader(*t, f, "scan"));
-  if (b.scan.plan == PlanKind::Ring) {
-    for (std::size_t i = 0; i < b.cameras.size(); ++i) {
-      if (!b.cameras[i].azimuth_deg) {
-        const toml::table* t = cams->get(i)->as_table();
-        TableReader(*t, f, "camera[" + std::to_string(i) + "]")
-            .fail("azimuth_deg",
-                  "is required with [scan] plan = \"ring\": the projector azimuths [lo, hi] "
-                  "of camera '" +
-                      b.cameras[i].name + "''s working volume");
-      }
-    }
-  }
+  (void)root.table("scan");  // the firmware's (scanTable)
 
   if (const toml::table* t = root.table("sim")) {
     TableReader r(*t, f, "sim");
@@ -431,8 +364,7 @@ BoardProfile loadBoardProfile(const fs::path& dir_or_file) {
   std::error_code ec;
   const fs::path file =
       fs::is_directory(dir_or_file, ec) ? dir_or_file / "board.toml" : dir_or_file;
-  const toml::table table = sim::parseTomlFile(file.string());
-  return parseBoardProfile(table, file);
+  return parseBoardProfile(parseTomlFile(file.string()), file);
 }
 
 }  // namespace cylscan::drivers

@@ -1,13 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
 // The board profile (board/<name>/board.toml): which backends drive the head,
-// where its GPIO lines are, its stage, its cameras, the acquisition defaults
-// and, for the virtual head, its model. Format: board/README.md.
+// where its GPIO lines are, its stage, its cameras and, for the virtual head,
+// its model; its [scan] table is the firmware's (firmware/scan_profile.hpp). Format:
+// board/README.md.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -15,8 +17,8 @@
 
 #include <toml++/toml.h>
 
+#include "common/vocabulary.hpp"
 #include "drivers/camera.hpp"
-#include "drivers/camera_name.hpp"
 #include "drivers/gpio.hpp"
 #include "drivers/sim/head_config.hpp"
 #include "drivers/stage_config.hpp"
@@ -52,38 +54,6 @@ struct CameraProfile {
   std::optional<std::array<double, 2>> azimuth_deg;
 };
 
-enum class ScanMode { StopAndGo, Continuous };
-
-// How the stage angles of the two sets are planned. Sets: each set at its own
-// start in steps of θ/N (one camera, or cameras that face the same half).
-// Ring: two sweeps 180° apart in one common step for every camera of a 360°
-// head; each camera takes the high or the low set from a sweep according to
-// the half of the cylinder it faces (firmware/scan_plan.hpp).
-enum class PlanKind { Sets, Ring };
-
-// [scan]: defaults of the acquisition loop. The start angles are stage angles;
-// the defaults put the virtual head's main field of view in the middle of the
-// cylinder's high half (high set) and 180° before it on the low half (low set).
-struct ScanProfile {
-  int frames_high = 25;
-  int frames_low = 25;
-  double high_start_deg = 235.98;
-  double low_start_deg = 55.98;
-  ScanMode mode = ScanMode::StopAndGo;
-  double frame_timeout_ms = 1000.0;
-  std::optional<double> settle_ms;  // overrides [stage] settle_ms
-  bool save_bundle = true;
-  bool verify_steps = true;  // re-seek home after a scan: lost steps fail it
-  // The projector's slot intervals: θh (high set) and θl (low set).
-  double period_high_deg = 5.0;
-  double period_low_deg = 5.625;
-  PlanKind plan = PlanKind::Sets;
-  // Ring: the common frame step (0: the planner chooses it) and the wall angle
-  // where the high slots' half begins (h0: the high slots cover [h0, h0 + 180)).
-  double step_deg = 0.0;
-  double high_half_start_deg = 0.0;
-};
-
 // [sim]: the virtual head.
 struct SimProfile {
   sim::HeadConfig head;
@@ -99,25 +69,29 @@ struct BoardProfile {
   GpioProfile gpio;
   StageConfig stage;
   std::vector<CameraProfile> cameras;  // "main" first
-  ScanProfile scan;
+  // The parsed file, shared by the copies of the profile. It holds [scan],
+  // unread here: how to scan is the firmware's policy (firmware/scan_profile.hpp),
+  // and its nodes keep their lines for the firmware's messages.
+  std::shared_ptr<const toml::table> document;
   std::optional<SimProfile> sim;  // set exactly when the cameras are the virtual head's
 
   // Throws std::invalid_argument naming the camera when there is none of that name.
   const CameraProfile& camera(std::string_view name) const;
-  double settleMs() const { return scan.settle_ms.value_or(stage.settle_ms); }
+  // The [scan] table; an empty one when the file has none.
+  const toml::table& scanTable() const;
 };
 
 std::string_view toString(CameraBackendKind backend);
 std::string_view toString(TriggerMode trigger);
 std::string_view toString(FrameStream stream);
-std::string_view toString(ScanMode mode);
-std::string_view toString(PlanKind plan);
 
 // Reads `dir`/board.toml (or the file itself when given one). Every fault
-// throws sim::ConfigError (a std::invalid_argument) naming the file, the line
+// throws ConfigError (drivers/toml_reader.hpp, a std::invalid_argument) naming the file, the line
 // and the key; unknown keys are faults. Files named in it are relative to its folder.
 BoardProfile loadBoardProfile(const std::filesystem::path& dir_or_file);
-// The same from a parsed table; `file` names it in messages and anchors relative paths.
-BoardProfile parseBoardProfile(const toml::table& table, const std::filesystem::path& file);
+// The same from a parsed table; `file` names it in messages and anchors relative
+// paths. The table is taken by value: toml++ keeps source lines only when a
+// table is moved, not copied.
+BoardProfile parseBoardProfile(toml::table table, const std::filesystem::path& file);
 
 }  // namespace cylscan::drivers

@@ -14,7 +14,6 @@
 namespace cylscan::firmware {
 namespace {
 
-using formats::FringeSetId;
 using std::chrono::nanoseconds;
 
 // How often a thread waiting for the other looks again. A frame comes at the
@@ -316,10 +315,10 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
     }
     stage_->enable();
     int base = 0;
-    for (const FringeSetId id : formats::kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       const SetPlan& set = plan.set(id);
       const int n = static_cast<int>(set.positions.size());
-      if (options.mode == drivers::ScanMode::StopAndGo) {
+      if (options.mode == ScanMode::StopAndGo) {
         for (int k = 0; k < n; ++k) {
           const int frame = base + k;
           stage_->moveToStep(set.positions[static_cast<std::size_t>(k)]);
@@ -417,7 +416,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
                      us(profile.image_latency_ms * 1e3)};
   }
   int base = 0;
-  for (const FringeSetId id : formats::kFringeSets) {
+  for (const FringeSet id : kFringeSets) {
     const int n = static_cast<int>(plan.set(id).positions.size());
     received.clear();
     skip.clear();
@@ -430,7 +429,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
         drivers::Camera& camera = board_.camera(name);
         // The set this camera's frame belongs to: the motion set itself, or
         // (ring plan) the other one for a camera facing the other half.
-        const FringeSetId camera_set = plan.setOf(name, id);
+        const FringeSet camera_set = plan.setOf(name, id);
         const Stream& stream = streams[name];
         // A stream whose frames never get new enough (a camera that repeats
         // an old frame, stamps from another clock) times out like silence.
@@ -448,7 +447,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
             if (retried) {
               shared.fail(
                   "camera '" + name + "': no frame " + std::to_string(k) + " of the " +
-                  std::string(formats::toString(camera_set)) + " set within " +
+                  std::string(toString(camera_set)) + " set within " +
                   number(options.frame_timeout_ms) + " ms, twice" +
                   (stale ? " (its frames kept coming, none stamped after the trigger)" : ""));
               return;
@@ -457,7 +456,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
             ++report.retries;
             for (auto& [camera_name, sequence] : next_sequence)
               sequence.reset();  // the lost exposure may have used a sequence number
-            if (options.mode == drivers::ScanMode::StopAndGo) {
+            if (options.mode == ScanMode::StopAndGo) {
               shared.retrigger.store(frame, std::memory_order_release);  // the same frame again
               continue;
             }
@@ -484,7 +483,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
             shared.fail("camera '" + name + "': frame sequence jumped from " +
                         std::to_string(*expected) + " to " + std::to_string(f->sequence) +
                         " at frame " + std::to_string(k) + " of the " +
-                        std::string(formats::toString(camera_set)) + " set: a frame was lost");
+                        std::string(toString(camera_set)) + " set: a frame was lost");
             return;
           }
           expected = f->sequence + 1;
@@ -497,7 +496,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
       shared.acked.store(frame + 1, std::memory_order_release);
       ++report.frames;
       if (k == n - 1) {
-        report.set_duration[id == FringeSetId::High ? 0 : 1] =
+        report.set_duration[id == FringeSet::High ? 0 : 1] =
             clock.now() - nanoseconds{shared.trigger_ns[static_cast<std::size_t>(base)].load()};
       }
       if (progress) progress({frame + 1, plan.frames(), id});
@@ -519,11 +518,11 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
   for (const auto& name : options.cameras) {
     const drivers::CameraProfile& camera = board_.profile().camera(name);
     if (camera.config.trigger == drivers::TriggerMode::FreeRunning &&
-        options.mode == drivers::ScanMode::Continuous)
+        options.mode == ScanMode::Continuous)
       throw std::invalid_argument("scan: camera '" + name +
                                   "' is free-running; continuous mode needs triggered cameras");
     if (camera.config.stream == drivers::FrameStream::Continuous &&
-        options.mode == drivers::ScanMode::Continuous)
+        options.mode == ScanMode::Continuous)
       throw std::invalid_argument("scan: camera '" + name +
                                   "' streams continuously (stream = \"continuous\"); continuous "
                                   "mode needs cameras that deliver one frame per trigger");

@@ -54,7 +54,7 @@ class ScanError : public std::runtime_error {
 struct ScanProgress {
   int frames_done = 0;
   int frames_total = 0;
-  formats::FringeSetId set = formats::FringeSetId::High;
+  FringeSet set = FringeSet::High;
 };
 
 struct ScanReport {

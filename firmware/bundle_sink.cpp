@@ -4,17 +4,13 @@
 #include <algorithm>
 
 namespace cylscan::firmware {
-namespace {
-
-using formats::FringeSetId;
-
-}  // namespace
+namespace {}  // namespace
 
 nlohmann::json ringLayoutJson(const RingLayout& ring) {
   nlohmann::json first = nlohmann::json::object();
   nlohmann::json margins = nlohmann::json::object();
   for (const RingCamera& c : ring.cameras) {
-    first[c.camera] = formats::toString(c.first_sweep_set);
+    first[c.camera] = toString(c.first_sweep_set);
     margins[c.camera] = {{"window", c.window_margin_deg}, {"half", c.half_margin_deg}};
   }
   return {{"start_deg", ring.start_deg},
@@ -35,21 +31,21 @@ formats::CaptureInfo infoOf(const ScanPlan& plan, const std::vector<std::string>
   info.cameras = cameras;
   // The top-level sets are main's (docs/formats.md); a camera whose angles differ
   // (a ring plan's cameras facing the other half) carries its own.
-  auto setOf = [&](std::string_view camera, FringeSetId id) {
+  auto setOf = [&](std::string_view camera, FringeSet id) {
     return formats::FringeSetInfo{plan.periodDeg(id), plan.anglesDeg(camera, id)};
   };
-  info.high = setOf("main", FringeSetId::High);
-  info.low = setOf("main", FringeSetId::Low);
+  info.high = setOf("main", FringeSet::High);
+  info.low = setOf("main", FringeSet::Low);
   extra["steps_per_deg"] = plan.steps_per_deg;
-  extra["stage_steps"] = {{"high", plan.motionSetOf("main", FringeSetId::High).positions},
-                          {"low", plan.motionSetOf("main", FringeSetId::Low).positions}};
+  extra["stage_steps"] = {{"high", plan.motionSetOf("main", FringeSet::High).positions},
+                          {"low", plan.motionSetOf("main", FringeSet::Low).positions}};
   for (const std::string& camera : cameras) {
-    formats::CameraSets own{setOf(camera, FringeSetId::High), setOf(camera, FringeSetId::Low)};
+    formats::CameraSets own{setOf(camera, FringeSet::High), setOf(camera, FringeSet::Low)};
     if (own.high.stage_deg == info.high.stage_deg && own.low.stage_deg == info.low.stage_deg)
       continue;
     info.camera_sets[camera] = std::move(own);
-    for (const FringeSetId id : formats::kFringeSets) {
-      extra["camera_sets"][camera][std::string(formats::toString(id))]["stage_steps"] =
+    for (const FringeSet id : kFringeSets) {
+      extra["camera_sets"][camera][std::string(toString(id))]["stage_steps"] =
           plan.motionSetOf(camera, id).positions;
     }
   }
@@ -67,8 +63,8 @@ BundleSink::BundleSink(const std::filesystem::path& dir, const ScanPlan& plan,
                        const std::vector<std::string>& cameras, nlohmann::json extra)
     : writer_(dir, infoOf(plan, cameras, std::move(extra))) {}
 
-void BundleSink::onFrame(std::string_view camera, formats::FringeSetId set, int k,
-                         double /*stage_deg*/, const cv::Mat& image) {
+void BundleSink::onFrame(std::string_view camera, FringeSet set, int k, double /*stage_deg*/,
+                         const cv::Mat& image) {
   writer_.writeFrame(camera, set, k, image);
 }
 

@@ -27,7 +27,7 @@ class BundleSink final : public FrameSink {
  public:
   BundleSink(const std::filesystem::path& dir, const ScanPlan& plan,
              const std::vector<std::string>& cameras, nlohmann::json extra);
-  void onFrame(std::string_view camera, formats::FringeSetId set, int k, double stage_deg,
+  void onFrame(std::string_view camera, FringeSet set, int k, double stage_deg,
                const cv::Mat& image) override;
   void commit();
 
@@ -42,7 +42,7 @@ nlohmann::json ringLayoutJson(const RingLayout& ring);
 class TeeSink final : public FrameSink {
  public:
   void add(FrameSink& sink) { sinks_.push_back(&sink); }
-  void onFrame(std::string_view camera, formats::FringeSetId set, int k, double stage_deg,
+  void onFrame(std::string_view camera, FringeSet set, int k, double stage_deg,
                const cv::Mat& image) override {
     for (FrameSink* sink : sinks_)
       sink->onFrame(camera, set, k, stage_deg, image);

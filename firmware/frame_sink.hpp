@@ -18,7 +18,7 @@ class FrameSink {
   // `stage_deg`. `set` is the camera's own set (ScanPlan::setOf: with a ring
   // plan, a camera facing the low half in sweep 1 gets its low set first).
   // Frames of one set all come before the other set's.
-  virtual void onFrame(std::string_view camera, formats::FringeSetId set, int k, double stage_deg,
+  virtual void onFrame(std::string_view camera, FringeSet set, int k, double stage_deg,
                        const cv::Mat& image) = 0;
 };
 

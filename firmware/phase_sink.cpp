@@ -8,8 +8,8 @@
 namespace cylscan::firmware {
 namespace {
 
-algo::FringeSet engineSet(formats::FringeSetId id) {
-  return id == formats::FringeSetId::High ? algo::FringeSet::High : algo::FringeSet::Low;
+FringeSet engineSet(FringeSet id) {
+  return id == FringeSet::High ? FringeSet::High : FringeSet::Low;
 }
 
 }  // namespace
@@ -17,8 +17,7 @@ algo::FringeSet engineSet(formats::FringeSetId id) {
 PhaseSink::PhaseSink(const ScanPlan& plan, const algo::PhaseOptions& options)
     : plan_(plan), options_(options) {}
 
-algo::FringeSetGeometry PhaseSink::geometry(std::string_view camera,
-                                            formats::FringeSetId set) const {
+algo::FringeSetGeometry PhaseSink::geometry(std::string_view camera, FringeSet set) const {
   return {plan_.periodDeg(set), plan_.anglesDeg(camera, set)};
 }
 
@@ -36,12 +35,12 @@ const PhaseSink::Camera& PhaseSink::camera(std::string_view name) const {
   return it->second;
 }
 
-void PhaseSink::onFrame(std::string_view name, formats::FringeSetId set, int k, double stage_deg,
+void PhaseSink::onFrame(std::string_view name, FringeSet set, int k, double stage_deg,
                         const cv::Mat& image) {
   auto it = cameras_.find(name);
   if (it == cameras_.end()) {
-    algo::FringeSetGeometry high = geometry(name, formats::FringeSetId::High);
-    algo::FringeSetGeometry low = geometry(name, formats::FringeSetId::Low);
+    algo::FringeSetGeometry high = geometry(name, FringeSet::High);
+    algo::FringeSetGeometry low = geometry(name, FringeSet::Low);
     algo::PhaseEngine engine(image.size(), high, low, options_);
     it = cameras_
              .emplace(std::string(name),
@@ -50,13 +49,12 @@ void PhaseSink::onFrame(std::string_view name, formats::FringeSetId set, int k, 
   }
   Camera& c = it->second;
   // The engine's weights come from the plan: a frame must be where it says.
-  const auto& angles = (set == formats::FringeSetId::High ? c.high : c.low).stage_deg;
+  const auto& angles = (set == FringeSet::High ? c.high : c.low).stage_deg;
   const double planned = angles.at(static_cast<std::size_t>(k));
   if (std::abs(planned - stage_deg) > 0.5 / plan_.steps_per_deg) {
     throw std::logic_error("phase: camera '" + std::string(name) + "': frame " + std::to_string(k) +
-                           " of the " + std::string(formats::toString(set)) +
-                           " set was exposed at " + std::to_string(stage_deg) + " deg, planned " +
-                           std::to_string(planned));
+                           " of the " + std::string(toString(set)) + " set was exposed at " +
+                           std::to_string(stage_deg) + " deg, planned " + std::to_string(planned));
   }
   c.engine.fold(engineSet(set), k, image);
   ++c.folded;

@@ -26,7 +26,7 @@ class PhaseSink final : public FrameSink {
 
   // std::logic_error when the frame's angle is not the plan's for that
   // camera's set; the engine's own errors pass through.
-  void onFrame(std::string_view camera, formats::FringeSetId set, int k, double stage_deg,
+  void onFrame(std::string_view camera, FringeSet set, int k, double stage_deg,
                const cv::Mat& image) override;
 
   // The maps of a camera once every frame was folded; std::logic_error before.
@@ -36,7 +36,7 @@ class PhaseSink final : public FrameSink {
   // The engines' working state, all cameras (O(K × pixels): no frame is kept).
   std::size_t workingStateBytes() const;
   // The geometry a camera's engine uses (its own angles, the set's period).
-  algo::FringeSetGeometry geometry(std::string_view camera, formats::FringeSetId set) const;
+  algo::FringeSetGeometry geometry(std::string_view camera, FringeSet set) const;
 
  private:
   struct Camera {

@@ -27,22 +27,8 @@ bool finite3(const cv::Vec3f& p) {
 
 }  // namespace
 
-PhaseChoice parsePhaseChoice(const std::string& name) {
-  if (name == "high") return PhaseChoice::kHigh;
-  if (name == "fused") return PhaseChoice::kFused;
-  throw std::invalid_argument("--phase must be 'high' or 'fused', not '" + name + "'");
-}
-
-std::string toString(PhaseChoice choice) {
-  return choice == PhaseChoice::kHigh ? "high" : "fused";
-}
-
-const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseChoice choice) {
-  return choice == PhaseChoice::kHigh ? maps.absolute : maps.fused;
-}
-
-PhaseChoice phaseChoiceOf(algo::PhaseSource source) {
-  return source == algo::PhaseSource::kHigh ? PhaseChoice::kHigh : PhaseChoice::kFused;
+const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseSource choice) {
+  return choice == PhaseSource::High ? maps.absolute : maps.fused;
 }
 
 algo::QuasiCalibration readQuasiCalibration(const fs::path& file) {
@@ -162,7 +148,7 @@ cv::Mat previewOfMap(const cv::Mat& map) {
   return out;
 }
 
-cv::Mat textureImage(const cv::Mat& texture, int bit_depth) {
+cv::Mat texturePreview(const cv::Mat& texture, int bit_depth) {
   const double full = std::ldexp(1.0, std::clamp(bit_depth, 1, 16)) - 1.0;
   cv::Mat out;
   texture.convertTo(out, CV_8U, 255.0 / full);

@@ -19,16 +19,8 @@
 
 namespace cylscan::firmware {
 
-// Which absolute phase is used: Φ of the high set, or the fused one.
-enum class PhaseChoice { kHigh, kFused };
-
-// "high" / "fused"; std::invalid_argument otherwise.
-PhaseChoice parsePhaseChoice(const std::string& name);
-std::string toString(PhaseChoice choice);
 // The map of `maps` for the choice (CV_32F, NaN where invalid); shares the data.
-const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseChoice choice);
-// The phase a calibration was fitted on.
-PhaseChoice phaseChoiceOf(algo::PhaseSource source);
+const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseSource choice);
 
 // The largest quasi-calibration the format allows (2^25 pixels × 57 bytes) and a bit.
 inline constexpr std::uintmax_t kMaxCalibrationFileBytes = (std::uintmax_t{1} << 25) * 57 + 4096;
@@ -70,6 +62,6 @@ cv::Mat depthOfMap(const cv::Mat& xyz);
 // non-finite pixels black. An all-invalid map is all black.
 cv::Mat previewOfMap(const cv::Mat& map);
 // The same as a texture preview: CV_8UC1, counts scaled by 255 / (2^bit_depth − 1).
-cv::Mat textureImage(const cv::Mat& texture, int bit_depth);
+cv::Mat texturePreview(const cv::Mat& texture, int bit_depth);
 
 }  // namespace cylscan::firmware

@@ -5,7 +5,7 @@
 #include <system_error>
 #include <utility>
 
-#include "drivers/camera_name.hpp"
+#include "common/vocabulary.hpp"
 #include "formats/images.hpp"
 #include "formats/point_cloud.hpp"
 
@@ -129,7 +129,7 @@ class OutputWriter {
     }
     if (options_.previews) {
       output("texture.png", [&](const fs::path& file) {
-        formats::writePng(file, textureImage(maps.texture, options_.bit_depth));
+        formats::writePng(file, texturePreview(maps.texture, options_.bit_depth));
       });
       output("phase.png", [&](const fs::path& file) {
         formats::writePng(file, previewOfMap(absolutePhase(maps, options_.phase)));
@@ -201,7 +201,7 @@ class OutputWriter {
       const std::optional<algo::QuasiCalibration> calib =
           installed.calibration(camera, maps.texture.size());
       if (!calib) return out;  // removed meanwhile
-      entry.phase = phaseChoiceOf(calib->info().phase_source);
+      entry.phase = calib->info().phase_source;
       entry.phase_valid_fraction = maps.valid_fraction;
       out = CameraCloud{
           camera, cloudOfMaps(calib->evaluate(absolutePhase(maps, entry.phase)), maps.texture)};
@@ -255,7 +255,7 @@ UnusableCalibration::UnusableCalibration(std::string camera, const fs::path& fil
     : ScanError(unusableMessage(camera, file, reason)), camera_(std::move(camera)) {}
 
 fs::path CalibrationDir::calibrationFile(std::string_view camera) const {
-  if (!drivers::isCameraName(camera))
+  if (!isCameraName(camera))
     throw std::invalid_argument("not a camera name: '" + std::string(camera) + "'");
   return dir_ / (std::string(camera) + ".qcal");
 }

@@ -46,7 +46,7 @@ class CalibrationDir {
 
   const std::filesystem::path& dir() const { return dir_; }
   // <camera>.qcal, whether or not it exists; std::invalid_argument for a
-  // name that is not a camera name (drivers/camera_name.hpp).
+  // name that is not a camera name (common/vocabulary.hpp).
   std::filesystem::path calibrationFile(std::string_view camera) const;
   std::filesystem::path headFile() const { return dir_ / "head.json"; }
 
@@ -76,11 +76,11 @@ struct ScanCalibrations {
 // Which files are written, named relative to the output directory (an
 // absolute name is used as it is); an empty name is not written.
 struct ScanOutputOptions {
-  PhaseChoice phase = PhaseChoice::kFused;  // main's absolute phase
-  int bit_depth = 8;                        // main's counts, for texture.png
-  std::string cloud = "cloud.ply";          // main's cloud; a 360° scan's merged one
-  std::string depth = "depth.tiff";         // main's depth map (float Z)
-  bool previews = true;                     // texture.png, phase.png, depth.png
+  PhaseSource phase = PhaseSource::Fused;  // main's absolute phase
+  int bit_depth = 8;                       // main's counts, for texture.png
+  std::string cloud = "cloud.ply";         // main's cloud; a 360° scan's merged one
+  std::string depth = "depth.tiff";        // main's depth map (float Z)
+  bool previews = true;                    // texture.png, phase.png, depth.png
   // The cameras of a 360° scan (main first): each calibrated one's cloud in
   // clouds/<camera>.ply, and `cloud` merged from them in the head frame.
   // Empty: main alone.
@@ -93,7 +93,7 @@ struct CameraOutput {
   bool calibrated = false;
   std::size_t points = 0;
   // When calibrated: the phase used, its valid fraction and the cloud's file.
-  PhaseChoice phase = PhaseChoice::kFused;
+  PhaseSource phase = PhaseSource::Fused;
   double phase_valid_fraction = 0.0;
   std::string file;
 };
@@ -113,7 +113,7 @@ struct RingOutput {
 
 // What the outputs show of the scan.
 struct OutputFigures {
-  PhaseChoice phase = PhaseChoice::kFused;
+  PhaseSource phase = PhaseSource::Fused;
   double phase_valid_fraction = 0.0;  // main's
   // The points of `cloud`: main's when calibrated; for a 360° scan always
   // (0 when no cloud was written).

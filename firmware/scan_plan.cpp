@@ -13,9 +13,9 @@
 namespace cylscan::firmware {
 namespace {
 
-SetPlan planSet(formats::FringeSetId id, double period_deg, int frames, double start_deg,
+SetPlan planSet(FringeSet id, double period_deg, int frames, double start_deg,
                 double steps_per_deg) {
-  const std::string name(formats::toString(id));
+  const std::string name(toString(id));
   if (frames < 3) throw std::invalid_argument("scan: the " + name + " set needs at least 3 frames");
   if (!(period_deg > 0))
     throw std::invalid_argument("scan: the " + name + " set's period must be positive");
@@ -95,8 +95,8 @@ RingScore scoreRing(const std::vector<CameraGeometry>& cameras, double start_deg
     const double lo = c.lo - start_deg, hi = c.hi - start_deg;
     rc.window_margin_deg = marginFromGrid(lo, hi, h0, lambda_eq);
     rc.half_margin_deg = marginFromGrid(lo - span_deg, hi, h0, 180.0);
-    rc.first_sweep_set = floorMod(lo - span_deg - h0, 360.0) < 180.0 ? formats::FringeSetId::High
-                                                                     : formats::FringeSetId::Low;
+    rc.first_sweep_set =
+        floorMod(lo - span_deg - h0, 360.0) < 180.0 ? FringeSet::High : FringeSet::Low;
     const double m = std::min(rc.window_margin_deg, rc.half_margin_deg);
     if (m < s.score) {
       s.score = m;
@@ -210,8 +210,7 @@ void planRing(const ScanOptions& o, ScanPlan& plan) {
   for (std::int64_t p = 0; p < turn; ++p) {
     const double rho = static_cast<double>(p) / spd;
     RingScore s = scoreRing(cameras, rho, span, o.high_half_start_deg, lambda_eq);
-    if (s.cameras.front().first_sweep_set != formats::FringeSetId::High &&
-        cameras.front().name == "main") {
+    if (s.cameras.front().first_sweep_set != FringeSet::High && cameras.front().name == "main") {
       continue;
     }
     if (s.score > best.score + 1e-12) {
@@ -244,17 +243,17 @@ void planRing(const ScanOptions& o, ScanPlan& plan) {
 
   const std::int64_t start2 =
       best_start >= half_turn ? best_start - half_turn : best_start + half_turn;
-  auto sweep = [&](formats::FringeSetId id, std::int64_t start) {
+  auto sweep = [&](FringeSet id, std::int64_t start) {
     SetPlan set;
     set.set = id;
-    set.period_deg = id == formats::FringeSetId::High ? th : tl;
+    set.period_deg = id == FringeSet::High ? th : tl;
     set.step_deg = step_deg;
     for (int k = 0; k < n; ++k)
       set.positions.push_back(start + k * step);
     return set;
   };
-  plan.high = sweep(formats::FringeSetId::High, best_start);
-  plan.low = sweep(formats::FringeSetId::Low, start2);
+  plan.high = sweep(FringeSet::High, best_start);
+  plan.low = sweep(FringeSet::Low, start2);
   RingLayout layout;
   layout.start_deg = static_cast<double>(best_start) / spd;
   layout.sweep2_start_deg = static_cast<double>(start2) / spd;
@@ -265,7 +264,7 @@ void planRing(const ScanOptions& o, ScanPlan& plan) {
   layout.noise_gain_low = gain_low;
   layout.cameras = best.cameras;
   for (const auto& c : layout.cameras)
-    if (c.first_sweep_set == formats::FringeSetId::Low) plan.swapped.insert(c.camera);
+    if (c.first_sweep_set == FringeSet::Low) plan.swapped.insert(c.camera);
   plan.ring = std::move(layout);
 }
 
@@ -289,21 +288,25 @@ double phaseNoiseGain(const std::vector<double>& shifts_rad) {
 }
 
 ScanOptions scanOptionsFrom(const drivers::BoardProfile& profile) {
+  return scanOptionsFrom(profile, readScanProfile(profile));
+}
+
+ScanOptions scanOptionsFrom(const drivers::BoardProfile& profile, const ScanProfile& scan) {
   ScanOptions o;
-  o.frames_high = profile.scan.frames_high;
-  o.frames_low = profile.scan.frames_low;
-  o.period_high_deg = profile.scan.period_high_deg;
-  o.period_low_deg = profile.scan.period_low_deg;
-  o.high_start_deg = profile.scan.high_start_deg;
-  o.low_start_deg = profile.scan.low_start_deg;
-  o.mode = profile.scan.mode;
-  o.settle_ms = profile.settleMs();
-  o.frame_timeout_ms = profile.scan.frame_timeout_ms;
-  o.verify_steps = profile.scan.verify_steps;
-  o.plan = profile.scan.plan;
-  o.step_deg = profile.scan.step_deg;
-  o.high_half_start_deg = profile.scan.high_half_start_deg;
-  if (o.plan == drivers::PlanKind::Ring) {
+  o.frames_high = scan.frames_high;
+  o.frames_low = scan.frames_low;
+  o.period_high_deg = scan.period_high_deg;
+  o.period_low_deg = scan.period_low_deg;
+  o.high_start_deg = scan.high_start_deg;
+  o.low_start_deg = scan.low_start_deg;
+  o.mode = scan.mode;
+  o.settle_ms = settleMs(profile, scan);
+  o.frame_timeout_ms = scan.frame_timeout_ms;
+  o.verify_steps = scan.verify_steps;
+  o.plan = scan.plan;
+  o.step_deg = scan.step_deg;
+  o.high_half_start_deg = scan.high_half_start_deg;
+  if (o.plan == PlanKind::Ring) {
     o.cameras.clear();
     for (const auto& camera : profile.cameras) {
       o.cameras.push_back(camera.name);
@@ -332,11 +335,11 @@ ScanPlan cameraSetsPlan(const ScanPlan& ring, std::string_view camera) {
                                 std::string(camera) + "'");
   }
   ScanPlan out;
-  out.high = ring.motionSetOf(camera, formats::FringeSetId::High);
-  out.high.set = formats::FringeSetId::High;
+  out.high = ring.motionSetOf(camera, FringeSet::High);
+  out.high.set = FringeSet::High;
   out.high.period_deg = ring.period_high_deg;
-  out.low = ring.motionSetOf(camera, formats::FringeSetId::Low);
-  out.low.set = formats::FringeSetId::Low;
+  out.low = ring.motionSetOf(camera, FringeSet::Low);
+  out.low.set = FringeSet::Low;
   out.low.period_deg = ring.period_low_deg;
   out.steps_per_deg = ring.steps_per_deg;
   out.period_high_deg = ring.period_high_deg;
@@ -344,26 +347,24 @@ ScanPlan cameraSetsPlan(const ScanPlan& ring, std::string_view camera) {
   return out;
 }
 
-std::vector<double> ScanPlan::anglesDeg(formats::FringeSetId id) const {
+std::vector<double> ScanPlan::anglesDeg(FringeSet id) const {
   std::vector<double> out;
   for (const auto p : set(id).positions)
     out.push_back(static_cast<double>(p) / steps_per_deg);
   return out;
 }
 
-formats::FringeSetId ScanPlan::setOf(std::string_view camera,
-                                     formats::FringeSetId motion_set) const {
+FringeSet ScanPlan::setOf(std::string_view camera, FringeSet motion_set) const {
   if (!swapped.contains(camera)) return motion_set;
-  return motion_set == formats::FringeSetId::High ? formats::FringeSetId::Low
-                                                  : formats::FringeSetId::High;
+  return motion_set == FringeSet::High ? FringeSet::Low : FringeSet::High;
 }
 
-const SetPlan& ScanPlan::motionSetOf(std::string_view camera, formats::FringeSetId set) const {
+const SetPlan& ScanPlan::motionSetOf(std::string_view camera, FringeSet set) const {
   // setOf is its own inverse: a swap or the identity.
   return this->set(setOf(camera, set));
 }
 
-std::vector<double> ScanPlan::anglesDeg(std::string_view camera, formats::FringeSetId id) const {
+std::vector<double> ScanPlan::anglesDeg(std::string_view camera, FringeSet id) const {
   std::vector<double> out;
   for (const auto p : motionSetOf(camera, id).positions)
     out.push_back(static_cast<double>(p) / steps_per_deg);
@@ -376,13 +377,13 @@ ScanPlan planScan(const ScanOptions& options, const drivers::StageConfig& stage)
   if (!(plan.steps_per_deg > 0)) throw std::invalid_argument("scan: the stage has no steps");
   plan.period_high_deg = options.period_high_deg;
   plan.period_low_deg = options.period_low_deg;
-  if (options.plan == drivers::PlanKind::Ring) {
+  if (options.plan == PlanKind::Ring) {
     planRing(options, plan);
     return plan;
   }
-  plan.high = planSet(formats::FringeSetId::High, options.period_high_deg, options.frames_high,
+  plan.high = planSet(FringeSet::High, options.period_high_deg, options.frames_high,
                       options.high_start_deg, plan.steps_per_deg);
-  plan.low = planSet(formats::FringeSetId::Low, options.period_low_deg, options.frames_low,
+  plan.low = planSet(FringeSet::Low, options.period_low_deg, options.frames_low,
                      options.low_start_deg, plan.steps_per_deg);
   return plan;
 }

@@ -19,6 +19,7 @@
 
 #include "drivers/board_profile.hpp"
 #include "drivers/stage_config.hpp"
+#include "firmware/scan_profile.hpp"
 #include "formats/capture_bundle.hpp"
 
 namespace cylscan::firmware {
@@ -38,7 +39,7 @@ struct ScanOptions {
   double period_low_deg = 5.625;
   double high_start_deg = 0;
   double low_start_deg = 0;
-  drivers::ScanMode mode = drivers::ScanMode::StopAndGo;
+  ScanMode mode = ScanMode::StopAndGo;
   double settle_ms = 100;
   double frame_timeout_ms = 1000;
   // Continuous mode: the constant speed; 0 = one frame step per frame period
@@ -52,10 +53,10 @@ struct ScanOptions {
   int realtime_priority = 80;
   bool lock_memory = true;
   std::vector<std::string> cameras{"main"};
-  // The ring plan of a 360° head (drivers::PlanKind::Ring): both sweeps step by
+  // The ring plan of a 360° head (PlanKind::Ring): both sweeps step by
   // `step_deg` (0: the planner chooses it), the high slots cover wall angles
   // [h0, h0 + 180), and every camera of `cameras` has its azimuths here.
-  drivers::PlanKind plan = drivers::PlanKind::Sets;
+  PlanKind plan = PlanKind::Sets;
   double step_deg = 0;
   double high_half_start_deg = 0;
   std::vector<CameraAzimuth> azimuths;
@@ -65,12 +66,15 @@ struct ScanOptions {
   double ring_margin_deg = 1.0;
 };
 
-// The defaults of a board profile ([scan], [stage] and the cameras).
+// The defaults of a board: its [scan] (read by readScanProfile, whose
+// ConfigError it throws), its [stage] and its cameras.
 ScanOptions scanOptionsFrom(const drivers::BoardProfile& profile);
+// The same from a [scan] already read.
+ScanOptions scanOptionsFrom(const drivers::BoardProfile& profile, const ScanProfile& scan);
 
 struct SetPlan {
   // The set this motion set is (sets plan), or the set it is for main (ring plan).
-  formats::FringeSetId set = formats::FringeSetId::High;
+  FringeSet set = FringeSet::High;
   double period_deg = 0;                // that set's period θ
   double step_deg = 0;                  // the nominal frame step: θ/N (sets), Δ (ring)
   std::vector<std::int64_t> positions;  // stage steps of each frame (absolute, from home)
@@ -79,7 +83,7 @@ struct SetPlan {
 // What the ring planner chose for one camera.
 struct RingCamera {
   std::string camera;
-  formats::FringeSetId first_sweep_set = formats::FringeSetId::High;  // the set sweep 1 gives it
+  FringeSet first_sweep_set = FringeSet::High;  // the set sweep 1 gives it
   double window_margin_deg = 0;  // to the nearest equivalent-period wrap, at its sets' first frames
   double half_margin_deg = 0;    // to the nearest half boundary, over its sweeps
 };
@@ -116,18 +120,16 @@ struct ScanPlan {
   // Ring: the cameras whose sweep 1 is their low set. Empty for a sets plan.
   std::set<std::string, std::less<>> swapped;
 
-  const SetPlan& set(formats::FringeSetId id) const {
-    return id == formats::FringeSetId::High ? high : low;
-  }
+  const SetPlan& set(FringeSet id) const { return id == FringeSet::High ? high : low; }
   // The set that a camera's frames of motion set `motion_set` belong to.
-  formats::FringeSetId setOf(std::string_view camera, formats::FringeSetId motion_set) const;
+  FringeSet setOf(std::string_view camera, FringeSet motion_set) const;
   // The motion set that holds a camera's set `set` (the inverse of setOf).
-  const SetPlan& motionSetOf(std::string_view camera, formats::FringeSetId set) const;
+  const SetPlan& motionSetOf(std::string_view camera, FringeSet set) const;
   // The executed angles of a set (steps / steps per degree): main's, and a camera's own.
-  std::vector<double> anglesDeg(formats::FringeSetId id) const;
-  std::vector<double> anglesDeg(std::string_view camera, formats::FringeSetId set) const;
-  double periodDeg(formats::FringeSetId set) const {
-    return set == formats::FringeSetId::High ? period_high_deg : period_low_deg;
+  std::vector<double> anglesDeg(FringeSet id) const;
+  std::vector<double> anglesDeg(std::string_view camera, FringeSet set) const;
+  double periodDeg(FringeSet set) const {
+    return set == FringeSet::High ? period_high_deg : period_low_deg;
   }
   int frames() const { return static_cast<int>(high.positions.size() + low.positions.size()); }
 };

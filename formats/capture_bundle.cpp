@@ -45,7 +45,7 @@ constexpr const char* kMainInCameraSets =
     "\"camera_sets\" has camera \"main\", whose sets are the top-level \"sets\"";
 
 // Where a camera's set is in capture.json: "sets.high" or "camera_sets.cam90.high".
-std::string setWhere(std::string_view camera, FringeSetId id, bool own = true) {
+std::string setWhere(std::string_view camera, FringeSet id, bool own = true) {
   if (!own) return "sets." + std::string(toString(id));
   return "camera_sets." + std::string(camera) + "." + std::string(toString(id));
 }
@@ -82,7 +82,7 @@ std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
   if (std::find(info.cameras.begin(), info.cameras.end(), "main") == info.cameras.end()) {
     return "\"cameras\" does not contain \"main\"";
   }
-  for (const FringeSetId id : kFringeSets) {
+  for (const FringeSet id : kFringeSets) {
     if (auto fault = setFault(info.set(id), "sets." + std::string(toString(id)))) return fault;
   }
   for (const auto& [camera, sets] : info.camera_sets) {
@@ -90,7 +90,7 @@ std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
       return "\"camera_sets\" has camera " + inQuotes(camera) + ", which is not in \"cameras\"";
     }
     if (camera == "main") return kMainInCameraSets;
-    for (const FringeSetId id : kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       if (auto fault = setFault(sets.set(id), setWhere(camera, id))) return fault;
     }
   }
@@ -132,7 +132,7 @@ class CaptureJsonParser {
   // The unknown fields of a {"high": {...}, "low": {...}} object, by set.
   static json setExtras(const json& sets) {
     json out = json::object();
-    for (const FringeSetId id : kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       json extra = sets.at(std::string(toString(id)));
       extra.erase("period_deg");
       extra.erase("stage_deg");
@@ -198,19 +198,19 @@ class CaptureJsonParser {
   void readSetPair(const json& sets, const std::string& where, FringeSetInfo& high,
                    FringeSetInfo& low) const {
     for (const auto& [name, value] : sets.items()) {
-      if (name != toString(FringeSetId::High) && name != toString(FringeSetId::Low)) {
+      if (name != toString(FringeSet::High) && name != toString(FringeSet::Low)) {
         fail("unknown fringe set " + inQuotes(name) + " in " + inQuotes(where) +
              " (expected exactly \"high\" and \"low\")");
       }
     }
-    for (const FringeSetId id : kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       const std::string name(toString(id));
       const auto set = sets.find(name);
       if (set == sets.end()) fail("missing set " + inQuotes(name) + " in " + inQuotes(where));
       std::string set_where = where;
       set_where += '.';
       set_where += name;
-      (id == FringeSetId::High ? high : low) = readSet(*set, set_where);
+      (id == FringeSet::High ? high : low) = readSet(*set, set_where);
     }
   }
 
@@ -297,11 +297,7 @@ PngHeader checkFrameHeader(const fs::path& file, const FrameLimits& limits) {
 
 }  // namespace
 
-std::string_view toString(FringeSetId id) {
-  return id == FringeSetId::High ? "high" : "low";
-}
-
-const FringeSetInfo& CaptureInfo::setOf(std::string_view camera, FringeSetId id) const {
+const FringeSetInfo& CaptureInfo::setOf(std::string_view camera, FringeSet id) const {
   const auto it = camera_sets.find(camera);
   return it == camera_sets.end() ? set(id) : it->second.set(id);
 }
@@ -331,7 +327,7 @@ CaptureBundleReader::CaptureBundleReader(fs::path dir, FrameLimits limits)
   for (const std::string& camera : info_.cameras) {
     std::optional<cv::Size> first;
     fs::path first_path;
-    for (const FringeSetId id : kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       const std::size_t n = info_.setOf(camera, id).stage_deg.size();
       const std::string where = setWhere(camera, id, info_.hasOwnSets(camera));
       const fs::path set_dir = dir_ / camera / std::string(toString(id));
@@ -373,7 +369,7 @@ bool CaptureBundleReader::hasCamera(std::string_view camera) const {
   return frame_sizes_.find(camera) != frame_sizes_.end();
 }
 
-int CaptureBundleReader::frameCount(FringeSetId set) const {
+int CaptureBundleReader::frameCount(FringeSet set) const {
   return static_cast<int>(info_.set(set).stage_deg.size());
 }
 
@@ -387,12 +383,12 @@ void CaptureBundleReader::requireCamera(std::string_view camera) const {
   }
 }
 
-int CaptureBundleReader::frameCount(std::string_view camera, FringeSetId set) const {
+int CaptureBundleReader::frameCount(std::string_view camera, FringeSet set) const {
   requireCamera(camera);
   return static_cast<int>(info_.setOf(camera, set).stage_deg.size());
 }
 
-fs::path CaptureBundleReader::framePath(std::string_view camera, FringeSetId set, int k) const {
+fs::path CaptureBundleReader::framePath(std::string_view camera, FringeSet set, int k) const {
   const int n = frameCount(camera, set);
   if (k < 0 || k >= n) {
     throw std::out_of_range("frame " + std::to_string(k) + " of set " + inQuotes(toString(set)) +
@@ -404,13 +400,13 @@ fs::path CaptureBundleReader::framePath(std::string_view camera, FringeSetId set
 cv::Size CaptureBundleReader::frameSize(std::string_view camera) const {
   const auto it = frame_sizes_.find(camera);
   if (it == frame_sizes_.end()) {
-    (void)framePath(camera, FringeSetId::High, 0);  // throws the InputError for the camera
+    (void)framePath(camera, FringeSet::High, 0);  // throws the InputError for the camera
     throw std::logic_error("no frame size for camera " + inQuotes(camera));
   }
   return it->second;
 }
 
-cv::Mat CaptureBundleReader::readFrame(std::string_view camera, FringeSetId set, int k) const {
+cv::Mat CaptureBundleReader::readFrame(std::string_view camera, FringeSet set, int k) const {
   const fs::path file = framePath(camera, set, k);
   const cv::Size expected = frameSize(camera);
   const PngHeader header = checkFrameHeader(file, limits_);
@@ -445,7 +441,7 @@ CaptureBundleWriter::CaptureBundleWriter(fs::path dir, CaptureInfo info)
     if (ok) {
       for (const auto& [name, value] : sets->items()) {
         ok = ok && value.is_object() &&
-             (name == toString(FringeSetId::High) || name == toString(FringeSetId::Low));
+             (name == toString(FringeSet::High) || name == toString(FringeSet::Low));
       }
     }
     if (!ok) {
@@ -462,7 +458,7 @@ CaptureBundleWriter::CaptureBundleWriter(fs::path dir, CaptureInfo info)
         if (!ok) break;
         for (const auto& [name, value] : sets.items()) {
           ok = ok && value.is_object() &&
-               (name == toString(FringeSetId::High) || name == toString(FringeSetId::Low));
+               (name == toString(FringeSet::High) || name == toString(FringeSet::Low));
         }
       }
     }
@@ -476,14 +472,14 @@ CaptureBundleWriter::CaptureBundleWriter(fs::path dir, CaptureInfo info)
   fs::remove(json_file);  // the bundle is being rewritten: not whole until commit()
   for (const std::string& camera : info_.cameras) {
     CameraProgress& progress = progress_[camera];
-    for (const FringeSetId id : kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       progress.written[static_cast<std::size_t>(id)].assign(
           info_.setOf(camera, id).stage_deg.size(), false);
     }
   }
 }
 
-void CaptureBundleWriter::writeFrame(std::string_view camera, FringeSetId set, int k,
+void CaptureBundleWriter::writeFrame(std::string_view camera, FringeSet set, int k,
                                      const cv::Mat& frame) {
   const auto it = progress_.find(camera);
   const std::string where = "capture bundle " + dir_.string() + ", camera " + inQuotes(camera);
@@ -516,7 +512,7 @@ void CaptureBundleWriter::writeFrame(std::string_view camera, FringeSetId set, i
 void CaptureBundleWriter::commit() {
   for (const std::string& camera : info_.cameras) {
     const CameraProgress& progress = progress_.at(camera);
-    for (const FringeSetId id : kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       const auto& written = progress.written[static_cast<std::size_t>(id)];
       const int n = static_cast<int>(written.size());
       for (int k = 0; k < n; ++k) {
@@ -541,7 +537,7 @@ void CaptureBundleWriter::commit() {
   doc["cameras"] = info_.cameras;
   json& sets = doc["sets"];
   if (!sets.is_object()) sets = json::object();
-  for (const FringeSetId id : kFringeSets) {
+  for (const FringeSet id : kFringeSets) {
     json& set = sets[std::string(toString(id))];
     if (!set.is_object()) set = json::object();
     set["period_deg"] = info_.set(id).period_deg;
@@ -553,7 +549,7 @@ void CaptureBundleWriter::commit() {
     for (const auto& [camera, camera_sets] : info_.camera_sets) {
       json& sets_of = own[camera];
       if (!sets_of.is_object()) sets_of = json::object();
-      for (const FringeSetId id : kFringeSets) {
+      for (const FringeSet id : kFringeSets) {
         json& set = sets_of[std::string(toString(id))];
         if (!set.is_object()) set = json::object();
         set["period_deg"] = camera_sets.set(id).period_deg;

@@ -14,11 +14,9 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
-namespace cylscan::formats {
+#include "common/vocabulary.hpp"
 
-enum class FringeSetId { High, Low };
-std::string_view toString(FringeSetId id);  // "high" / "low"
-inline constexpr std::array<FringeSetId, 2> kFringeSets{FringeSetId::High, FringeSetId::Low};
+namespace cylscan::formats {
 
 struct FringeSetInfo {
   double period_deg = 0;          // θh or θl
@@ -31,8 +29,8 @@ struct FringeSetInfo {
 struct CameraSets {
   FringeSetInfo high;
   FringeSetInfo low;
-  const FringeSetInfo& set(FringeSetId id) const { return id == FringeSetId::High ? high : low; }
-  FringeSetInfo& set(FringeSetId id) { return id == FringeSetId::High ? high : low; }
+  const FringeSetInfo& set(FringeSet id) const { return id == FringeSet::High ? high : low; }
+  FringeSetInfo& set(FringeSet id) { return id == FringeSet::High ? high : low; }
 };
 
 struct CaptureInfo {
@@ -52,10 +50,10 @@ struct CaptureInfo {
   // "sets": {"high": {"steps": [..]}}}). The writer merges the known fields over it.
   nlohmann::json extra = nlohmann::json::object();
 
-  const FringeSetInfo& set(FringeSetId id) const { return id == FringeSetId::High ? high : low; }
-  FringeSetInfo& set(FringeSetId id) { return id == FringeSetId::High ? high : low; }
+  const FringeSetInfo& set(FringeSet id) const { return id == FringeSet::High ? high : low; }
+  FringeSetInfo& set(FringeSet id) { return id == FringeSet::High ? high : low; }
   // A camera's own set: its "camera_sets" entry when it has one, else the top-level set.
-  const FringeSetInfo& setOf(std::string_view camera, FringeSetId id) const;
+  const FringeSetInfo& setOf(std::string_view camera, FringeSet id) const;
   bool hasOwnSets(std::string_view camera) const {
     return camera_sets.find(camera) != camera_sets.end();
   }
@@ -79,19 +77,19 @@ class CaptureBundleReader {
   const std::filesystem::path& dir() const { return dir_; }
   const CaptureInfo& info() const { return info_; }
   bool hasCamera(std::string_view camera) const;
-  int frameCount(FringeSetId set) const;  // of the top-level set (main's)
+  int frameCount(FringeSet set) const;  // of the top-level set (main's)
   // Of the camera's own set (info().setOf); InputError for an unknown camera.
-  int frameCount(std::string_view camera, FringeSetId set) const;
+  int frameCount(std::string_view camera, FringeSet set) const;
   // InputError (naming capture.json) for a camera the bundle does not have;
   // std::out_of_range for k outside [0, frameCount(camera, set)).
-  std::filesystem::path framePath(std::string_view camera, FringeSetId set, int k) const;
+  std::filesystem::path framePath(std::string_view camera, FringeSet set, int k) const;
   // The size all frames of the camera share (checked when the bundle was opened).
   cv::Size frameSize(std::string_view camera) const;
 
   // Frame k of a set: CV_8UC1 or CV_16UC1. The PNG header is checked (single
   // channel, 8/16 bit, size within limits and equal to the camera's first
   // frame) before the image is decoded; a truncated or corrupt file is an error.
-  cv::Mat readFrame(std::string_view camera, FringeSetId set, int k) const;
+  cv::Mat readFrame(std::string_view camera, FringeSet set, int k) const;
 
  private:
   void requireCamera(std::string_view camera) const;  // InputError naming capture.json
@@ -116,7 +114,7 @@ class CaptureBundleWriter {
  public:
   CaptureBundleWriter(std::filesystem::path dir, CaptureInfo info);
   // CV_8UC1 or CV_16UC1, one size per camera (std::invalid_argument otherwise).
-  void writeFrame(std::string_view camera, FringeSetId set, int k, const cv::Mat& frame);
+  void writeFrame(std::string_view camera, FringeSet set, int k, const cv::Mat& frame);
   void commit();  // writes capture.json
 
  private:

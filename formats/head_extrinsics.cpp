@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "common/vocabulary.hpp"
 #include "formats/atomic_file.hpp"
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
@@ -110,8 +111,9 @@ HeadExtrinsics parseJson(const json& root, const fs::path& source) {
       if (!value.is_object() || value.empty())
         check.fail("cameras", "must be a non-empty object of camera poses");
       for (const auto& [name, pose] : value.items()) {
-        if (!isValidHeadCameraName(name))
-          check.fail("cameras." + name, "is not a camera name (1-64 of A-Z a-z 0-9 _ -)");
+        if (!isCameraName(name))
+          check.fail("cameras." + name,
+                     "is not a camera name (" + std::string(kCameraNameRule) + ")");
         head.cameras[name] = check.pose(pose, "cameras." + name);
       }
     } else if (key == "rms_mm") {
@@ -159,13 +161,6 @@ const CameraPose& HeadExtrinsics::pose(std::string_view camera) const {
   if (it == cameras.end())
     throw std::out_of_range("head.json has no camera '" + std::string(camera) + "'");
   return it->second;
-}
-
-bool isValidHeadCameraName(std::string_view name) {
-  return !name.empty() && name.size() <= 64 && std::all_of(name.begin(), name.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
-           c == '-';
-  });
 }
 
 HeadExtrinsics parseHeadExtrinsics(std::string_view text, const fs::path& source) {

@@ -51,9 +51,6 @@ struct HeadExtrinsics {
   const CameraPose& pose(std::string_view camera) const;
 };
 
-// A camera name of head.json and of a board: 1–64 of [A-Za-z0-9_-].
-bool isValidHeadCameraName(std::string_view name);
-
 // Parses and validates (InputError naming `source` and the field at fault):
 // the format, "frame" a camera of "cameras" whose pose is the identity, every
 // camera's name valid, R a 3×3 rotation (orthonormal to 1e-6, det +1), T three

@@ -1,14 +1,15 @@
 // SPDX-License-Identifier: Apache-2.0
-// board.toml: loadBoardProfile on the input, written as board.toml in a
-// folder that also holds the virtual head's head.toml and scenes/ (linked
-// from board/sim), so profiles naming them reach the head model too. Every
-// fault must be a sim::ConfigError (the documented std::invalid_argument).
+// board.toml: loadBoardProfile and the firmware's readScanProfile on the input, written as
+// board.toml in a folder that also holds the virtual head's head.toml and scenes/ (linked from
+// board/sim), so profiles naming them reach the head model too. Every fault must be a
+// drivers::ConfigError (the documented std::invalid_argument).
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <stdexcept>
 
 #include "drivers/board_profile.hpp"
+#include "firmware/scan_profile.hpp"
 #include "fuzz/fuzz_support.hpp"
 
 namespace {
@@ -34,7 +35,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const cylscan::drivers::BoardProfile profile = cylscan::drivers::loadBoardProfile(file);
     if (profile.cameras.empty() || profile.cameras.front().name != "main")
       throw std::logic_error("a profile accepted without \"main\" first");
-    (void)profile.settleMs();
+    (void)cylscan::firmware::readScanProfile(profile);
   } catch (const std::invalid_argument&) {
   }
   return 0;

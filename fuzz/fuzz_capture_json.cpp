@@ -50,7 +50,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const formats::CaptureBundleReader reader(dir);
     const formats::CaptureInfo& info = reader.info();
     require(!info.cameras.empty() && reader.hasCamera("main"), "opened without camera main");
-    for (const formats::FringeSetId set : formats::kFringeSets) {
+    for (const cylscan::FringeSet set : cylscan::kFringeSets) {
       const int n = reader.frameCount(set);
       require(n >= formats::kMinFramesPerSet && n <= 6, "opened with a frame count outside 3..6");
       for (const std::string& camera : info.cameras) {
@@ -59,7 +59,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                 "a frame path outside the bundle");
       }
     }
-    const cv::Mat frame = reader.readFrame("main", formats::FringeSetId::Low, 0);
+    const cv::Mat frame = reader.readFrame("main", cylscan::FringeSet::Low, 0);
     require(frame.rows == 6 && frame.cols == 8, "read a frame of another size");
   } catch (const formats::InputError&) {
   }

@@ -89,7 +89,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   try {
     const formats::CaptureBundleReader reader(dir, {kMaxSide, kMaxSide, kMaxPixels});
-    const cv::Mat image = reader.readFrame("main", formats::FringeSetId::Low, 5);
+    const cv::Mat image = reader.readFrame("main", cylscan::FringeSet::Low, 5);
     require(image.type() == CV_8UC1 || image.type() == CV_16UC1, "a frame of another type");
     require(image.size() == reader.frameSize("main"), "a frame of another size");
   } catch (const formats::InputError&) {

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # Static analysis: cppcheck and clang-tidy over the project's own sources
-# (algo, formats, drivers, firmware, tools), with the compile commands of the
+# (common, algo, formats, drivers, firmware, tools), with the compile commands of the
 # default build (configured here if missing). Checks: .clang-tidy; cppcheck's
 # suppressions with their reasons: scripts/cppcheck-suppressions.txt.
 # Exits non-zero on any finding of either tool. JOBS=N sets the parallelism
@@ -12,7 +12,7 @@ root=$(pwd)
 build="${LINT_BUILD_DIR:-build/default}"
 jobs="${JOBS:-$(nproc)}"
 which="${1:-all}"
-dirs=(algo formats drivers firmware tools)
+dirs=(common algo formats drivers firmware tools)
 
 if [ ! -f "$build/compile_commands.json" ]; then
   cmake --preset default >/dev/null

@@ -11,8 +11,8 @@
 namespace cylscan::tools {
 namespace {
 
-algo::FringeSet toAlgo(formats::FringeSetId id) {
-  return id == formats::FringeSetId::High ? algo::FringeSet::High : algo::FringeSet::Low;
+FringeSet toAlgo(FringeSet id) {
+  return id == FringeSet::High ? FringeSet::High : FringeSet::Low;
 }
 
 algo::FringeSetGeometry geometryOf(const formats::FringeSetInfo& set) {
@@ -42,8 +42,8 @@ algo::PhaseEngine makeEngine(const formats::CaptureBundleReader& bundle, const s
                              cv::Size size, const algo::PhaseOptions& options) {
   const formats::CaptureInfo& info = bundle.info();
   try {
-    return algo::PhaseEngine(size, geometryOf(info.setOf(camera, formats::FringeSetId::High)),
-                             geometryOf(info.setOf(camera, formats::FringeSetId::Low)), options);
+    return algo::PhaseEngine(size, geometryOf(info.setOf(camera, FringeSet::High)),
+                             geometryOf(info.setOf(camera, FringeSet::Low)), options);
   } catch (const std::invalid_argument& e) {  // includes ShiftSolveError
     throw formats::InputError(bundle.dir() / "capture.json", e.what());
   }
@@ -63,7 +63,7 @@ BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
   requireCamera(bundle, camera);
   BundlePhase out;
   Stopwatch watch;
-  const cv::Mat first = bundle.readFrame(camera, formats::FringeSetId::High, 0);
+  const cv::Mat first = bundle.readFrame(camera, FringeSet::High, 0);
   out.read_ms += watch.lapMs();
   out.size = first.size();
 
@@ -75,11 +75,11 @@ BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
   algo::PhaseEngine engine = makeEngine(bundle, camera, out.size, engine_options);
 
   // Streaming: each frame is folded in as soon as it is read; none is kept.
-  for (const auto set : formats::kFringeSets) {
+  for (const auto set : kFringeSets) {
     const int n = bundle.frameCount(camera, set);
     for (int k = 0; k < n; ++k) {
       watch.lapMs();
-      const bool reuse_first = set == formats::FringeSetId::High && k == 0;
+      const bool reuse_first = set == FringeSet::High && k == 0;
       const cv::Mat frame = reuse_first ? first : bundle.readFrame(camera, set, k);
       out.read_ms += watch.lapMs();
       try {

@@ -28,12 +28,9 @@ struct BundlePhase {
   double finalize_ms = 0;
 };
 
-// Which absolute phase a command works on (firmware/reconstruction.hpp, shared
-// with the daemon): Φ of the high set, or the fused one.
+// The map of the absolute phase a command works on (PhaseSource, shared with
+// the daemon): Φ of the high set, or the fused one.
 using firmware::absolutePhase;
-using firmware::parsePhaseChoice;
-using firmware::PhaseChoice;
-using firmware::toString;
 
 // Runs the engine over all frames of `camera`, with the camera's own sets
 // (formats::CaptureInfo::setOf: a ring scan's "camera_sets"). InputError naming capture.json

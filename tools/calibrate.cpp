@@ -145,7 +145,7 @@ void printSummary(const std::vector<PlanePose>& poses, const algo::QuasiCalibrat
 
 void runCalibrate(const CalibrateRequest& request) {
   Stopwatch total;
-  const PhaseChoice choice = parsePhaseChoice(request.phase);
+  const PhaseSource choice = parsePhaseSource(request.phase);
   if (static_cast<int>(request.bundles.size()) < request.min_poses) {
     throw std::invalid_argument("calibrate: " + std::to_string(request.bundles.size()) +
                                 " plane poses given, at least " +
@@ -163,8 +163,7 @@ void runCalibrate(const CalibrateRequest& request) {
   const PlanePoseMeasurer measurer(toStereoGeometry(stereo), pose_options);
   algo::QuasiCalibrationOptions options;
   options.min_poses = request.min_poses;
-  options.phase_source =
-      choice == PhaseChoice::kHigh ? algo::PhaseSource::kHigh : algo::PhaseSource::kFused;
+  options.phase_source = choice == PhaseSource::High ? PhaseSource::High : PhaseSource::Fused;
   algo::QuasiCalibrationFitter fitter(rays.size(), options);
   std::vector<PlanePose> poses;
   Stopwatch watch;

@@ -42,10 +42,10 @@ CameraReconstruction reconstructCamera(const formats::CaptureBundleReader& bundl
   }
   CameraReconstruction out;
   out.camera = camera;
-  const PhaseChoice recorded = firmware::phaseChoiceOf(calib.info().phase_source);
+  const PhaseSource recorded = calib.info().phase_source;
   out.phase = recorded;
-  if (!phase.empty() && parsePhaseChoice(phase) != recorded) {
-    throw formats::InputError(calib_file, "calibrated on the " + toString(recorded) +
+  if (!phase.empty() && parsePhaseSource(phase) != recorded) {
+    throw formats::InputError(calib_file, "calibrated on the " + std::string(toString(recorded)) +
                                               " phase, but --phase " + phase + " was asked");
   }
   Stopwatch watch;

@@ -19,7 +19,7 @@ struct CameraReconstruction {
   std::string camera;
   cv::Mat xyz;      // CV_32FC3 in the camera's own frame, NaN where invalid
   cv::Mat texture;  // CV_32F counts
-  PhaseChoice phase = PhaseChoice::kFused;
+  PhaseSource phase = PhaseSource::Fused;
   double phase_valid_fraction = 0;
   double phase_ms = 0;
   double reconstruct_ms = 0;

@@ -22,7 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 
 // Texture in the frames' own depth: 8-bit PNG for 8-bit frames, else 16-bit.
-cv::Mat textureImage(const cv::Mat& texture, int bit_depth) {
+cv::Mat textureInFrameDepth(const cv::Mat& texture, int bit_depth) {
   cv::Mat out;
   texture.convertTo(out, bit_depth <= 8 ? CV_8U : CV_16U);  // rounds and saturates
   return out;
@@ -60,7 +60,7 @@ void runPhase(const PhaseRequest& request) {
   formats::writeFloatTiff(out / "absolute.tiff", maps.absolute);
   formats::writeFloatTiff(out / "fused.tiff", maps.fused);
   formats::writeFloatTiff(out / "modulation_high.tiff", maps.modulation_high);
-  formats::writePng(out / "texture.png", textureImage(maps.texture, phase.bit_depth));
+  formats::writePng(out / "texture.png", textureInFrameDepth(maps.texture, phase.bit_depth));
   formats::writePng(out / "invalid.png", maps.invalid);
   const double write_ms = write_watch.elapsedMs();
 
@@ -73,8 +73,8 @@ void runPhase(const PhaseRequest& request) {
         {"bit_depth", phase.bit_depth},
         {"path", request.reference ? "reference" : "fixed-point"},
         {"frames",
-         {{"high", bundle.frameCount(request.camera, formats::FringeSetId::High)},
-          {"low", bundle.frameCount(request.camera, formats::FringeSetId::Low)}}},
+         {{"high", bundle.frameCount(request.camera, FringeSet::High)},
+          {"low", bundle.frameCount(request.camera, FringeSet::Low)}}},
         {"own_sets", bundle.info().hasOwnSets(request.camera)},
         {"valid_fraction", maps.valid_fraction},
         {"mean_modulation", std::isfinite(mean_modulation) ? mean_modulation : 0.0},

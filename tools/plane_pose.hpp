@@ -18,7 +18,7 @@
 namespace cylscan::tools {
 
 struct PlanePoseOptions {
-  PhaseChoice phase = PhaseChoice::kFused;
+  PhaseSource phase = PhaseSource::Fused;
   double plane_tolerance_mm = 0.5;  // stereo points farther from the plane are outliers
   // The main pixels a pose uses: all valid ones (a pixel aux cannot see still
   // has a ray and a plane), or only those with a stereo point on the plane.

@@ -91,15 +91,15 @@ void checkMethodOptions(const ReconstructRequest& request) {
 }
 
 // The polynomials take the phase they were fitted on; another one is refused.
-PhaseChoice phaseForCalibration(const ReconstructRequest& request,
+PhaseSource phaseForCalibration(const ReconstructRequest& request,
                                 const algo::QuasiCalibration& calib) {
-  const PhaseChoice recorded = firmware::phaseChoiceOf(calib.info().phase_source);
+  const PhaseSource recorded = calib.info().phase_source;
   if (request.phase.empty()) return recorded;
-  const PhaseChoice asked = parsePhaseChoice(request.phase);
+  const PhaseSource asked = parsePhaseSource(request.phase);
   if (asked != recorded) {
-    throw formats::InputError(request.calib, "calibrated on the " + toString(recorded) +
-                                                 " phase, but --phase " + request.phase +
-                                                 " was asked");
+    throw formats::InputError(request.calib,
+                              "calibrated on the " + std::string(toString(recorded)) +
+                                  " phase, but --phase " + request.phase + " was asked");
   }
   return asked;
 }
@@ -107,7 +107,7 @@ PhaseChoice phaseForCalibration(const ReconstructRequest& request,
 struct Reconstruction {
   cv::Mat xyz;  // CV_32FC3 on the main grid, NaN where invalid
   cv::Mat texture;
-  PhaseChoice phase = PhaseChoice::kFused;
+  PhaseSource phase = PhaseSource::Fused;
   double phase_valid_fraction = 0;
   double phase_ms = 0;
   double reconstruct_ms = 0;
@@ -144,7 +144,7 @@ Reconstruction reconstructStereo(const ReconstructRequest& request,
     requireStereoImageSize(request.stereo, stereo, bundle.frameSize(camera), bundle.dir() / camera);
   }
   Reconstruction out;
-  out.phase = request.phase.empty() ? PhaseChoice::kFused : parsePhaseChoice(request.phase);
+  out.phase = request.phase.empty() ? PhaseSource::Fused : parsePhaseSource(request.phase);
   Stopwatch watch;
   const BundlePhase main = computeBundlePhase(bundle, "main");
   const BundlePhase aux = computeBundlePhase(bundle, "aux");
@@ -225,11 +225,11 @@ void runReconstruct(const ReconstructRequest& request) {
   Stopwatch total;
   checkMethodOptions(request);
   if (!request.calib_dir.empty()) {
-    if (!request.phase.empty()) parsePhaseChoice(request.phase);
+    if (!request.phase.empty()) parsePhaseSource(request.phase);
     runMerged(request);
     return;
   }
-  if (!request.phase.empty()) parsePhaseChoice(request.phase);
+  if (!request.phase.empty()) parsePhaseSource(request.phase);
   const formats::CaptureBundleReader bundle(request.bundle);
   const Reconstruction r = request.method == "quasi" ? reconstructQuasi(request, bundle)
                                                      : reconstructStereo(request, bundle);

@@ -142,7 +142,7 @@ void runRefineStereo(const RefineStereoRequest& request) {
   const algo::CheckerboardObservations boards = observeBoards(request, size, rejected);
 
   PlanePoseOptions pose_options;
-  pose_options.phase = parsePhaseChoice(request.phase);
+  pose_options.phase = parsePhaseSource(request.phase);
   pose_options.stereo_pixels_only = true;
   pose_options.keep_aux_phase = true;
   const PlanePoseMeasurer measurer(initial, pose_options);

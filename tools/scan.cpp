@@ -69,8 +69,8 @@ void checkRequest(const ScanRequest& r) {
 firmware::ScanOptions optionsFor(const ScanRequest& request, const drivers::BoardProfile& profile) {
   firmware::ScanOptions options = firmware::scanOptionsFrom(profile);
   if (request.frames > 0) options.frames_high = options.frames_low = request.frames;
-  if (request.mode == "stop") options.mode = drivers::ScanMode::StopAndGo;
-  if (request.mode == "continuous") options.mode = drivers::ScanMode::Continuous;
+  if (request.mode == "stop") options.mode = firmware::ScanMode::StopAndGo;
+  if (request.mode == "continuous") options.mode = firmware::ScanMode::Continuous;
   if (request.no_verify) options.verify_steps = false;
   // Default: the profile's (main alone for a sets plan, every camera for a ring).
   if (!request.cameras.empty()) options.cameras = request.cameras;
@@ -93,7 +93,7 @@ void printRing(const firmware::RingLayout& ring) {
             << ring.sweep2_start_deg << " deg; phase noise vs ideal N-step: high "
             << ring.noise_gain_high << ", low " << ring.noise_gain_low << "\n";
   for (const firmware::RingCamera& c : ring.cameras) {
-    std::cout << "    " << c.camera << ": sweep 1 = " << formats::toString(c.first_sweep_set)
+    std::cout << "    " << c.camera << ": sweep 1 = " << toString(c.first_sweep_set)
               << " set; margins " << std::setprecision(2) << c.window_margin_deg
               << " deg to an equivalent-period wrap, " << c.half_margin_deg
               << " deg to a half boundary\n";
@@ -114,7 +114,7 @@ void runScan(const ScanRequest& request) {
   // when fewer are scanned: each camera's quasi-calibration holds for the
   // phase origin (its sets' first angles) of that layout only.
   firmware::ScanOptions layout = options;
-  if (options.plan == drivers::PlanKind::Ring)
+  if (options.plan == firmware::PlanKind::Ring)
     layout.cameras = firmware::scanOptionsFrom(profile).cameras;
   const firmware::ScanPlan plan = firmware::planScan(layout, profile.stage);
   const drivers::CameraProfile& main = profile.camera("main");
@@ -136,7 +136,7 @@ void runScan(const ScanRequest& request) {
   if (!request.out.empty()) {
     json extra = {{"device", "cylscan " + profile.name},
                   {"board", profile.name},
-                  {"mode", drivers::toString(options.mode)},
+                  {"mode", firmware::toString(options.mode)},
                   {"exposure_us", main.config.exposure_us}};
     if (main.config.bit_depth > 8) extra["bit_depth"] = main.config.bit_depth;
     bundle = std::make_unique<firmware::BundleSink>(request.out, plan, options.cameras, extra);
@@ -150,7 +150,7 @@ void runScan(const ScanRequest& request) {
   if (bundle) bundle->commit();
 
   json summary = {{"board", profile.name},
-                  {"mode", drivers::toString(options.mode)},
+                  {"mode", firmware::toString(options.mode)},
                   {"cameras", options.cameras},
                   {"frames", report.frames},
                   {"retries", report.retries},
@@ -165,7 +165,7 @@ void runScan(const ScanRequest& request) {
                   {"step_reramps", report.step_reramps},
                   {"trigger_jitter", jitterJson(report.trigger_jitter)},
                   {"stage_deg", {{"high", report.high_deg}, {"low", report.low_deg}}}};
-  summary["plan"] = drivers::toString(options.plan);
+  summary["plan"] = firmware::toString(options.plan);
   if (plan.ring) summary["ring"] = firmware::ringLayoutJson(*plan.ring);
   if (report.step_check) {
     summary["step_check"] = {{"expected_edge", report.step_check->expected_edge},
@@ -176,8 +176,8 @@ void runScan(const ScanRequest& request) {
   if (calib) {
     // The daemon's output step, main's cloud and depth map only.
     firmware::ScanOutputOptions output;
-    output.phase = request.phase.empty() ? firmware::phaseChoiceOf(calib->info().phase_source)
-                                         : parsePhaseChoice(request.phase);
+    output.phase =
+        request.phase.empty() ? calib->info().phase_source : parsePhaseSource(request.phase);
     output.cloud = request.cloud;
     output.depth = request.depth;
     output.previews = false;
@@ -195,7 +195,7 @@ void runScan(const ScanRequest& request) {
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "scan (" << profile.name << ", "
-            << drivers::toString(options.mode) << "): " << report.frames << " frames in "
+            << firmware::toString(options.mode) << "): " << report.frames << " frames in "
             << summary["scan_seconds"].get<double>() << " s of board time (sets "
             << summary["set_seconds"]["high"].get<double>() << " + "
             << summary["set_seconds"]["low"].get<double>() << " s)";

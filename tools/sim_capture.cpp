@@ -34,7 +34,6 @@ drivers::BoardProfile simulationProfile(const SimulateRequest& request) {
       cam.bit_depth = request.bit_depth;
   }
   p.sim->seed = request.seed;
-  if (request.frames_given) p.scan.frames_high = p.scan.frames_low = request.frames;
   matchCamerasToHead(p);
   return p;
 }
@@ -70,11 +69,20 @@ void checkPlanAgainstHead(const firmware::ScanPlan& plan, const drivers::BoardPr
   }
 }
 
-VirtualCapture::VirtualCapture(drivers::BoardProfile profile)
-    : board_(drivers::Board::open(std::move(profile))), acquisition_(board_) {}
+firmware::ScanOptions simulationOptions(const SimulateRequest& request,
+                                        const drivers::BoardProfile& profile) {
+  firmware::ScanOptions o = firmware::scanOptionsFrom(profile);
+  if (request.frames_given) o.frames_high = o.frames_low = request.frames;
+  return o;
+}
+
+VirtualCapture::VirtualCapture(drivers::BoardProfile profile, firmware::ScanOptions options)
+    : board_(drivers::Board::open(std::move(profile))),
+      acquisition_(board_),
+      options_(std::move(options)) {}
 
 firmware::ScanOptions VirtualCapture::options(const std::vector<std::string>& cameras) const {
-  firmware::ScanOptions o = firmware::scanOptionsFrom(board_.profile());
+  firmware::ScanOptions o = options_;
   o.cameras = cameras;
   return o;
 }

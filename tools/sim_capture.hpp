@@ -26,10 +26,13 @@ namespace cylscan::tools {
 
 // The board profile a dataset is rendered on: --board's (default: the shipped
 // board/sim) with the request applied to its virtual head (--head,
-// --width/--height, --noise, --bit-depth, --seed, --frames) and the cameras'
-// settings made to match the head. std::invalid_argument naming the board
-// when it has no virtual head or its stage or slots disagree with the head's.
+// --width/--height, --noise, --bit-depth, --seed) and the cameras' settings
+// made to match the head. std::invalid_argument naming the board when it has
+// no virtual head or its stage or slots disagree with the head's.
 drivers::BoardProfile simulationProfile(const SimulateRequest& request);
+// The board's scan options ([scan], firmware::scanOptionsFrom) with --frames.
+firmware::ScanOptions simulationOptions(const SimulateRequest& request,
+                                        const drivers::BoardProfile& profile);
 
 // Every virtual camera's width, height and bit depth set to its model's in
 // the profile's head (the head may have been replaced or rescaled).
@@ -41,7 +44,8 @@ void checkPlanAgainstHead(const firmware::ScanPlan& plan, const drivers::BoardPr
 
 class VirtualCapture {
  public:
-  explicit VirtualCapture(drivers::BoardProfile profile);
+  // Scans take `options` (mode, settle, timeouts), each with its own cameras.
+  VirtualCapture(drivers::BoardProfile profile, firmware::ScanOptions options);
 
   sim::VirtualHead& head() { return *board_.virtualHead(); }
   const drivers::BoardProfile& profile() const { return board_.profile(); }
@@ -62,6 +66,7 @@ class VirtualCapture {
 
   drivers::Board board_;
   firmware::Acquisition acquisition_;  // on board_: declared after it
+  firmware::ScanOptions options_;
   int triggers_ = 0;
 };
 

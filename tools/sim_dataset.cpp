@@ -149,8 +149,8 @@ formats::StereoCalibration stereoTruth(const sim::VirtualHead& head) {
 }  // namespace
 
 void writeDataset(const SimulateRequest& request, const drivers::BoardProfile& profile,
-                  const firmware::ScanPlan& plan, const json& bundle_extra, const json& truth_extra,
-                  SimClock::time_point started) {
+                  const firmware::ScanOptions& options, const firmware::ScanPlan& plan,
+                  const json& bundle_extra, const json& truth_extra, SimClock::time_point started) {
   std::vector<sim::Scene> tests = testScenes();
   std::set<std::string> names;
   for (const auto& s : tests)
@@ -175,7 +175,7 @@ void writeDataset(const SimulateRequest& request, const drivers::BoardProfile& p
         ": simulate needs a virtual head with the cameras 'main' and 'aux'");
   }
 
-  VirtualCapture capture(profile);
+  VirtualCapture capture(profile, options);
   sim::VirtualHead& head = capture.head();
   const fs::path out(request.out);
   fs::create_directories(out);
@@ -188,7 +188,7 @@ void writeDataset(const SimulateRequest& request, const drivers::BoardProfile& p
   const auto bundleExtra = [&](const sim::Scene& s) {
     json extra = {{"device", "cylscan virtual head"},
                   {"board", profile.name},
-                  {"mode", drivers::toString(profile.scan.mode)},
+                  {"mode", firmware::toString(options.mode)},
                   {"scene", s.name},
                   {"seed", request.seed},
                   {"exposure_us", main_params.exposure_us}};

@@ -18,10 +18,11 @@ namespace cylscan::tools {
 using SimClock = std::chrono::steady_clock;
 
 // Renders the dataset on `profile`'s virtual head (cameras "main" and "aux")
-// along `plan` into request.out. `bundle_extra`: extension fields of every
+// with `options` along `plan` into request.out. `bundle_extra`: extension fields of every
 // capture.json; `truth_extra`: more of truth.json's "acquisition".
 void writeDataset(const SimulateRequest& request, const drivers::BoardProfile& profile,
-                  const firmware::ScanPlan& plan, const nlohmann::json& bundle_extra,
-                  const nlohmann::json& truth_extra, SimClock::time_point started);
+                  const firmware::ScanOptions& options, const firmware::ScanPlan& plan,
+                  const nlohmann::json& bundle_extra, const nlohmann::json& truth_extra,
+                  SimClock::time_point started);
 
 }  // namespace cylscan::tools

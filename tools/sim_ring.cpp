@@ -34,6 +34,7 @@ constexpr double kExtraTurnDeg = 2.5;
 
 struct RingSetup {
   drivers::BoardProfile profile;  // the request applied to its virtual head
+  firmware::ScanOptions options;  // the board's, with the request's --frames
   firmware::ScanPlan plan;
   std::vector<std::string> cameras;  // the profile's cameras (the head's names), main first
 
@@ -50,10 +51,11 @@ RingSetup ringSetup(const SimulateRequest& request) {
   RingSetup r;
   r.profile = simulationProfile(request);
   const std::string where = r.profile.file.string();
-  if (r.profile.scan.plan != drivers::PlanKind::Ring) {
+  r.options = simulationOptions(request, r.profile);
+  if (r.options.plan != firmware::PlanKind::Ring) {
     throw std::invalid_argument(where + ": --camera and --turntable need [scan] plan = \"ring\"");
   }
-  r.plan = firmware::planScan(firmware::scanOptionsFrom(r.profile), r.profile.stage);
+  r.plan = firmware::planScan(r.options, r.profile.stage);
   checkPlanAgainstHead(r.plan, r.profile);
   for (const auto& cam : r.profile.cameras) {
     // The truth names the head's cameras: the board must use the same names.
@@ -72,8 +74,8 @@ json ringAcquisition(const SimulateRequest& request, const RingSetup& setup) {
   for (const std::string& c : setup.cameras) {
     const auto range = sim::workingVolumeAzimuthDeg(sim::CameraModel(setup.model(c)), projector);
     cams[c] = {{"azimuth_range_deg", {range[0], range[1]}},
-               {"high_deg", setup.plan.anglesDeg(c, formats::FringeSetId::High)},
-               {"low_deg", setup.plan.anglesDeg(c, formats::FringeSetId::Low)}};
+               {"high_deg", setup.plan.anglesDeg(c, FringeSet::High)},
+               {"low_deg", setup.plan.anglesDeg(c, FringeSet::Low)}};
   }
   return {{"plan", "ring"},
           {"ring", firmware::ringLayoutJson(*setup.plan.ring)},
@@ -103,7 +105,8 @@ void writeCameraDataset(const SimulateRequest& request, const RingSetup& setup,
   drivers::BoardProfile view = setup.profile;
   view.sim->head = sim::headForCamera(setup.head(), name);
   view.sim->seed = direction.seed;
-  view.scan.plan = drivers::PlanKind::Sets;
+  firmware::ScanOptions view_options = setup.options;
+  view_options.plan = firmware::PlanKind::Sets;
   drivers::CameraProfile main = setup.profile.camera(name);
   main.name = main.device = "main";
   main.azimuth_deg.reset();
@@ -111,7 +114,8 @@ void writeCameraDataset(const SimulateRequest& request, const RingSetup& setup,
   aux.name = aux.device = "aux";
   view.cameras = {main, aux};
   matchCamerasToHead(view);
-  writeDataset(direction, view, firmware::cameraSetsPlan(setup.plan, name), {{"head_camera", name}},
+  writeDataset(direction, view, view_options, firmware::cameraSetsPlan(setup.plan, name),
+               {{"head_camera", name}},
                {{"plan", "ring"},
                 {"ring", firmware::ringLayoutJson(*setup.plan.ring)},
                 {"head_pose", poseJson(sim::cameraPose(setup.model(name)))}},
@@ -123,13 +127,13 @@ void writeCameraDataset(const SimulateRequest& request, const RingSetup& setup,
 class RingScanner {
  public:
   RingScanner(const SimulateRequest& request, const RingSetup& setup)
-      : request_(request), setup_(setup), capture_(setup.profile) {}
+      : request_(request), setup_(setup), capture_(setup.profile, setup.options) {}
 
   void writeBundle(const fs::path& dir, const sim::Scene& s, const json& extra) {
     const sim::CameraParams& main = setup_.head().cameras.front();
     json info = {{"device", "cylscan virtual head"},
                  {"board", setup_.profile.name},
-                 {"mode", drivers::toString(setup_.profile.scan.mode)},
+                 {"mode", firmware::toString(setup_.options.mode)},
                  {"scene", s.name},
                  {"seed", request_.seed},
                  {"exposure_us", main.exposure_us}};

@@ -27,7 +27,8 @@ void runSimulate(SimulateRequest request) {
     throw std::invalid_argument("simulate: give both --width and --height");
   }
   const drivers::BoardProfile profile = simulationProfile(request);
-  if (profile.scan.plan == drivers::PlanKind::Ring) {
+  const firmware::ScanOptions options = simulationOptions(request, profile);
+  if (options.plan == firmware::PlanKind::Ring) {
     writeRingDataset(request, started);
     return;
   }
@@ -36,10 +37,10 @@ void runSimulate(SimulateRequest request) {
                                 ": --camera and --turntable are for a 360° head's board "
                                 "([scan] plan = \"ring\", e.g. board/sim360)");
   }
-  const firmware::ScanPlan plan =
-      firmware::planScan(firmware::scanOptionsFrom(profile), profile.stage);
+  const firmware::ScanPlan plan = firmware::planScan(options, profile.stage);
   checkPlanAgainstHead(plan, profile);
-  writeDataset(request, profile, plan, nlohmann::json::object(), nlohmann::json::object(), started);
+  writeDataset(request, profile, options, plan, nlohmann::json::object(), nlohmann::json::object(),
+               started);
 }
 
 }  // namespace

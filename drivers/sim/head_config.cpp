@@ -4,9 +4,13 @@
 #include <set>
 #include <stdexcept>
 
-#include "drivers/sim/toml_reader.hpp"
+#include "drivers/toml_reader.hpp"
 
 namespace cylscan::sim {
+
+using drivers::ConfigError;
+using drivers::parseTomlFile;
+using drivers::TableReader;
 
 HeadConfig defaultHeadConfig() {
   HeadConfig c;

@@ -5,9 +5,13 @@
 #include <cmath>
 #include <limits>
 
-#include "drivers/sim/toml_reader.hpp"
+#include "drivers/toml_reader.hpp"
 
 namespace cylscan::sim {
+
+using drivers::ConfigError;
+using drivers::parseTomlFile;
+using drivers::TableReader;
 
 Vec3 Plane::axisU() const {
   const Vec3 n = normal.normalized();

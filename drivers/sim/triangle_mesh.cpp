@@ -10,9 +10,13 @@
 #include <sstream>
 #include <string>
 
-#include "drivers/sim/toml_reader.hpp"
+#include "drivers/toml_reader.hpp"
 
 namespace cylscan::sim {
+
+using drivers::ConfigError;
+using drivers::parseTomlFile;
+using drivers::TableReader;
 
 namespace {
 

@@ -125,7 +125,7 @@ int main(int argc, char** argv) try {
   std::unique_ptr<ScanService> service;
   try {
     service = std::make_unique<ScanService>(scanServiceOptions(cfg, CYLSCAN_VERSION));
-  } catch (const std::invalid_argument& e) {  // a bad board profile (sim::ConfigError)
+  } catch (const std::invalid_argument& e) {  // a bad board profile (drivers::ConfigError)
     std::cerr << "cylscand: " << e.what() << "\n";
     return 2;
   } catch (const std::exception& e) {

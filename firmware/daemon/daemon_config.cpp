@@ -1,80 +1,21 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "firmware/daemon/daemon_config.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cstdint>
 #include <cstdlib>
-#include <fstream>
-#include <functional>
-#include <map>
-#include <sstream>
 
 #include <toml++/toml.h>
 
+#include "drivers/toml_reader.hpp"
 #include "firmware/shipped_boards.hpp"
 
 namespace cylscan::firmware {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string describe(const std::string& file, int line, const std::string& key,
-                     const std::string& fault) {
-  std::ostringstream out;
-  out << file;
-  if (line > 0) out << ":" << line;
-  out << ": ";
-  if (!key.empty()) out << key << ": ";
-  out << fault;
-  return out.str();
-}
-
-// One key's node with what the messages need.
-struct Entry {
-  const toml::node& node;
-  std::string key;  // dotted, e.g. "daemon.listen"
-  const std::string& file;
-  int line() const { return static_cast<int>(node.source().begin.line); }
-  [[noreturn]] void fail(const std::string& fault) const {
-    throw ConfigError(file, line(), key, fault);
-  }
-  std::string string() const {
-    if (!node.is_string()) fail("must be a string");
-    return *node.value<std::string>();
-  }
-  bool boolean() const {
-    if (!node.is_boolean()) fail("must be true or false");
-    return *node.value<bool>();
-  }
-  std::int64_t integer(std::int64_t lo, std::int64_t hi) const {
-    if (!node.is_integer()) fail("must be an integer");
-    const std::int64_t v = *node.value<std::int64_t>();
-    if (v < lo || v > hi)
-      fail(std::to_string(v) + " is not in " + std::to_string(lo) + ".." + std::to_string(hi));
-    return v;
-  }
-  fs::path path() const {
-    const std::string s = string();
-    if (s.empty()) fail("must not be empty");
-    const fs::path p(s);
-    return p.is_absolute() ? p : fs::path(file).parent_path() / p;
-  }
-};
-
-using Handler = std::function<void(const Entry&)>;
-
-void readTable(const toml::table& table, const std::string& section, const std::string& file,
-               const std::map<std::string, Handler, std::less<>>& handlers) {
-  for (const auto& [key, node] : table) {
-    const std::string dotted = section + "." + std::string(key.str());
-    auto it = handlers.find(key.str());
-    if (it == handlers.end()) {
-      throw ConfigError(file, static_cast<int>(key.source().begin.line), dotted, "unknown key");
-    }
-    it->second(Entry{node, dotted, file});
-  }
-}
 
 std::optional<std::uint16_t> parsePort(std::string_view s) {
   if (s.empty() || s.size() > 5) return std::nullopt;
@@ -85,13 +26,6 @@ std::optional<std::uint16_t> parsePort(std::string_view s) {
 }
 
 }  // namespace
-
-ConfigError::ConfigError(const std::string& file, int line, const std::string& key,
-                         const std::string& fault)
-    : std::invalid_argument(describe(file, line, key, fault)),
-      file_(file),
-      line_(line),
-      key_(key) {}
 
 LogLevel parseLogLevel(std::string_view name) {
   if (name == "error") return LogLevel::Error;
@@ -173,95 +107,65 @@ DaemonDefaults daemonDefaults(const fs::path& exe_dir) {
 
 DaemonConfig parseDaemonConfig(std::string_view text, const fs::path& file_path, DaemonConfig c) {
   const std::string file = file_path.string();
-  toml::table root;
-  try {
-    root = toml::parse(text, file);
-  } catch (const toml::parse_error& e) {
-    throw ConfigError(file, static_cast<int>(e.source().begin.line), "",
-                      std::string(e.description()));
-  }
+  const toml::table root = drivers::parseToml(text, file);
   c.file = file_path;
-  const std::map<std::string, Handler, std::less<>> daemon = {
-      {"board", [&](const Entry& e) { c.board = e.path(); }},
-      {"listen",
-       [&](const Entry& e) {
-         try {
-           c.listen = parseListenAddress(e.string());
-         } catch (const std::invalid_argument& err) {
-           e.fail(err.what());
-         }
-       }},
-      {"token",
-       [&](const Entry& e) {
-         c.token = e.string();
-         for (char ch : c.token)
-           if (ch <= ' ' || ch == 0x7f) e.fail("must not hold spaces or control characters");
-       }},
-      {"allow_loopback_without_token",
-       [&](const Entry& e) { c.allow_loopback_without_token = e.boolean(); }},
-      {"data_dir", [&](const Entry& e) { c.data_dir = e.path(); }},
-      {"web_root", [&](const Entry& e) { c.web_root = e.path(); }},
-      {"log_level",
-       [&](const Entry& e) {
-         try {
-           c.log_level = parseLogLevel(e.string());
-         } catch (const std::invalid_argument& err) {
-           e.fail(err.what());
-         }
-       }},
-      {"max_calibration_bytes",
-       [&](const Entry& e) {
-         c.max_calibration_bytes =
-             static_cast<std::uint64_t>(e.integer(1024, std::int64_t{1} << 34));
-       }},
+  drivers::TableReader top(root, file, "");
+  // A value that a parser of its own checks: its std::invalid_argument names the key.
+  const auto checked = [](drivers::TableReader& r, std::string_view key, auto parse) {
+    try {
+      return parse(r.string(key, ""));
+    } catch (const std::invalid_argument& e) {
+      r.fail(key, e.what());
+    }
   };
-  const std::map<std::string, Handler, std::less<>> retention = {
-      {"max_scans",
-       [&](const Entry& e) {
-         c.retention.max_scans = static_cast<std::uint64_t>(e.integer(0, 1000000));
-       }},
-      {"max_bytes",
-       [&](const Entry& e) {
-         c.retention.max_bytes = static_cast<std::uint64_t>(e.integer(0, INT64_MAX));
-       }},
-  };
-  const std::map<std::string, Handler, std::less<>> scan = {
-      {"mode",
-       [&](const Entry& e) {
-         const std::string m = e.string();
-         if (m != "stop" && m != "continuous") e.fail("'" + m + "' is not stop or continuous");
-         c.scan.mode = m;
-       }},
-      {"frames", [&](const Entry& e) { c.scan.frames = static_cast<int>(e.integer(3, 1000)); }},
-      {"save_bundle", [&](const Entry& e) { c.scan.save_bundle = e.boolean(); }},
-      {"phase",
-       [&](const Entry& e) {
-         const std::string p = e.string();
-         if (p != "fused" && p != "high") e.fail("'" + p + "' is not fused or high");
-         c.scan.phase = p;
-       }},
-  };
-  const std::map<std::string, const std::map<std::string, Handler, std::less<>>*, std::less<>>
-      sections = {{"daemon", &daemon}, {"retention", &retention}, {"scan", &scan}};
-  for (const auto& [key, node] : root) {
-    const int line = static_cast<int>(key.source().begin.line);
-    auto it = sections.find(key.str());
-    if (it == sections.end()) throw ConfigError(file, line, std::string(key.str()), "unknown key");
-    if (!node.is_table())
-      throw ConfigError(file, line, std::string(key.str()),
-                        "must be a table [" + std::string(key.str()) + "]");
-    readTable(*node.as_table(), std::string(key.str()), file, *it->second);
+  if (const toml::table* t = top.table("daemon")) {
+    drivers::TableReader r(*t, file, "daemon");
+    c.board = r.path("board", c.board);
+    if (r.has("listen")) c.listen = checked(r, "listen", parseListenAddress);
+    c.token = r.string("token", c.token);
+    r.require(std::none_of(c.token.begin(), c.token.end(),
+                           [](char ch) { return ch <= ' ' || ch == 0x7f; }),
+              "token", "must not hold spaces or control characters");
+    c.allow_loopback_without_token =
+        r.boolean("allow_loopback_without_token", c.allow_loopback_without_token);
+    c.data_dir = r.path("data_dir", c.data_dir);
+    c.web_root = r.path("web_root", c.web_root);
+    if (r.has("log_level")) c.log_level = checked(r, "log_level", parseLogLevel);
+    c.max_calibration_bytes = static_cast<std::uint64_t>(
+        r.integerIn("max_calibration_bytes", static_cast<std::int64_t>(c.max_calibration_bytes),
+                    1024, std::int64_t{1} << 34));
+    r.finish();
   }
+  if (const toml::table* t = top.table("retention")) {
+    drivers::TableReader r(*t, file, "retention");
+    c.retention.max_scans = static_cast<std::uint64_t>(
+        r.integerIn("max_scans", static_cast<std::int64_t>(c.retention.max_scans), 0, 1000000));
+    c.retention.max_bytes = static_cast<std::uint64_t>(
+        r.integerIn("max_bytes", static_cast<std::int64_t>(c.retention.max_bytes), 0, INT64_MAX));
+    r.finish();
+  }
+  if (const toml::table* t = top.table("scan")) {
+    drivers::TableReader r(*t, file, "scan");
+    if (r.has("mode")) {
+      const std::string m = r.string("mode", "");
+      r.require(m == "stop" || m == "continuous", "mode", "'" + m + "' is not stop or continuous");
+      c.scan.mode = m;
+    }
+    if (r.has("frames")) c.scan.frames = static_cast<int>(r.integerIn("frames", 0, 3, 1000));
+    if (r.has("save_bundle")) c.scan.save_bundle = r.boolean("save_bundle", false);
+    if (r.has("phase")) {
+      const std::string p = r.string("phase", "");
+      r.require(p == "fused" || p == "high", "phase", "'" + p + "' is not fused or high");
+      c.scan.phase = p;
+    }
+    r.finish();
+  }
+  top.finish();
   return c;
 }
 
 DaemonConfig loadDaemonConfig(const fs::path& file, DaemonConfig base) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw ConfigError(file.string(), 0, "", "cannot open the file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw ConfigError(file.string(), 0, "", "cannot read the file");
-  return parseDaemonConfig(text.str(), file, std::move(base));
+  return parseDaemonConfig(drivers::readConfigText(file.string()), file, std::move(base));
 }
 
 DaemonConfig resolveDaemonConfig(const DaemonFlags& flags, const DaemonDefaults& defaults,

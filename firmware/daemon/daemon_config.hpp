@@ -11,22 +11,13 @@
 #include <string>
 #include <string_view>
 
+#include "drivers/toml_reader.hpp"
+
 namespace cylscan::firmware {
 
 // A fault of the configuration: "FILE:LINE: KEY: FAULT" (line 0 = not known,
-// e.g. a flag; the file is then "--flag").
-class ConfigError : public std::invalid_argument {
- public:
-  ConfigError(const std::string& file, int line, const std::string& key, const std::string& fault);
-  const std::string& file() const { return file_; }
-  int line() const { return line_; }
-  const std::string& key() const { return key_; }
-
- private:
-  std::string file_;
-  int line_;
-  std::string key_;
-};
+// e.g. a flag; the file is then "--flag"). The one strict TOML reader's error.
+using drivers::ConfigError;
 
 enum class LogLevel { Error, Warn, Info, Debug };
 // "error" | "warn" | "info" | "debug"; std::invalid_argument otherwise.

@@ -131,7 +131,7 @@ CameraOutput cameraFrom(const Fields& f) {
   c.camera = f.required<std::string>("camera");
   f.read("calibrated", c.calibrated);
   f.read("points", c.points);
-  if (f.has("phase")) c.phase = parsed(f, "phase", parsePhaseChoice);
+  if (f.has("phase")) c.phase = parsed(f, "phase", parsePhaseSource);
   f.read("phase_valid_fraction", c.phase_valid_fraction);
   f.read("file", c.file);
   return c;
@@ -139,7 +139,7 @@ CameraOutput cameraFrom(const Fields& f) {
 
 OutputFigures outputFrom(const Fields& f) {
   OutputFigures o;
-  if (f.has("phase")) o.phase = parsed(f, "phase", parsePhaseChoice);
+  if (f.has("phase")) o.phase = parsed(f, "phase", parsePhaseSource);
   f.read("phase_valid_fraction", o.phase_valid_fraction);
   f.read("points", o.points);
   if (f.has("cameras") || f.has("cloud")) {

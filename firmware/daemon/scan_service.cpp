@@ -60,7 +60,7 @@ json calibrationInfoJson(const algo::QuasiCalibration& calib, std::uintmax_t byt
           {"bytes", bytes},
           {"width", calib.size().width},
           {"height", calib.size().height},
-          {"phase_source", toString(phaseChoiceOf(calib.info().phase_source))}};
+          {"phase_source", toString(calib.info().phase_source)}};
 }
 
 const std::vector<double>& durationBoundsSeconds() {
@@ -74,8 +74,8 @@ struct ScanService::Request {
   json given = json::object();
   ScanOptions scan;
   bool save_bundle = false;
-  std::optional<PhaseChoice> phase_asked;  // given in the POST
-  PhaseChoice phase_default = PhaseChoice::kFused;
+  std::optional<PhaseSource> phase_asked;  // given in the POST
+  PhaseSource phase_default = PhaseSource::Fused;
   std::optional<fs::path> scene;
   int frames_total = 0;
 };
@@ -103,6 +103,7 @@ ScanService::ScanService(ScanServiceOptions options)
       scan_duration_(durationBoundsSeconds()) {
   board_ = std::make_unique<drivers::Board>(drivers::Board::open(options_.board));
   profile_ = board_->profile();
+  scan_profile_ = readScanProfile(profile_);
   board_name_ = profile_.name;
   scenes_dir_ = profile_.file.parent_path() / "scenes";
   acquisition_ = std::make_unique<Acquisition>(*board_);
@@ -182,11 +183,11 @@ ScanService::Request ScanService::validate(const json& options) const {
     if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end())
       badOption(key, "unknown option (known: mode, frames, save_bundle, phase, scene)");
   }
-  r.scan = scanOptionsFrom(profile_);
-  r.save_bundle = options_.scan.save_bundle.value_or(profile_.scan.save_bundle);
+  r.scan = scanOptionsFrom(profile_, scan_profile_);
+  r.save_bundle = options_.scan.save_bundle.value_or(scan_profile_.save_bundle);
   std::optional<std::string> mode = options_.scan.mode;
   std::optional<int> frames = options_.scan.frames;
-  if (options_.scan.phase) r.phase_default = parsePhaseChoice(*options_.scan.phase);
+  if (options_.scan.phase) r.phase_default = parsePhaseSource(*options_.scan.phase);
 
   if (r.given.contains("mode")) {
     const json& v = r.given["mode"];
@@ -209,7 +210,7 @@ ScanService::Request ScanService::validate(const json& options) const {
     const json& v = r.given["phase"];
     if (!v.is_string() || (v != "fused" && v != "high"))
       badOption("phase", "must be \"fused\" or \"high\"");
-    r.phase_asked = parsePhaseChoice(v.get<std::string>());
+    r.phase_asked = parsePhaseSource(v.get<std::string>());
   }
   if (r.given.contains("scene")) {
     const json& v = r.given["scene"];
@@ -222,13 +223,11 @@ ScanService::Request ScanService::validate(const json& options) const {
       badOption("scene", "no scene '" + v.get<std::string>() + "' in " + scenes_dir_.string());
     r.scene = file;
   }
-  if (mode)
-    r.scan.mode =
-        *mode == "continuous" ? drivers::ScanMode::Continuous : drivers::ScanMode::StopAndGo;
+  if (mode) r.scan.mode = *mode == "continuous" ? ScanMode::Continuous : ScanMode::StopAndGo;
   if (frames) r.scan.frames_high = r.scan.frames_low = *frames;
   // A ring plan (the 360° head) scans every camera of the board; a sets plan
   // scans main only (its sets are main's).
-  if (r.scan.plan != drivers::PlanKind::Ring) r.scan.cameras = {"main"};
+  if (r.scan.plan != PlanKind::Ring) r.scan.cameras = {"main"};
   try {
     const ScanPlan plan = planScan(r.scan, profile_.stage);
     r.frames_total = plan.frames();
@@ -446,7 +445,7 @@ algo::PhaseOptions ScanService::phaseOptions() const {
 ScanOutputOptions ScanService::outputOptions(const Request& request,
                                              const ScanCalibrations& calibrations) const {
   ScanOutputOptions options;
-  options.phase = calibrations.main ? phaseChoiceOf(calibrations.main->info().phase_source)
+  options.phase = calibrations.main ? calibrations.main->info().phase_source
                                     : request.phase_asked.value_or(request.phase_default);
   options.bit_depth = board_->profile().camera("main").config.bit_depth;
   if (request.scan.cameras.size() > 1) options.ring_cameras = request.scan.cameras;
@@ -464,14 +463,14 @@ ScanReport ScanService::acquire(Job& job, const ScanPlan& plan, PhaseSink& phase
     const auto& main = board_->profile().camera("main").config;
     json extra = {{"device", "cylscand " + board_name_},
                   {"board", board_name_},
-                  {"mode", drivers::toString(request.scan.mode)},
+                  {"mode", toString(request.scan.mode)},
                   {"exposure_us", main.exposure_us}};
     if (main.bit_depth > 8) extra["bit_depth"] = main.bit_depth;
     bundle = std::make_unique<BundleSink>(partial / kBundleDir, plan, request.scan.cameras, extra);
     sinks.add(*bundle);
   }
   logInfo("scan " + job.record.id + " running: " + std::to_string(plan.frames()) + " frames, " +
-          std::string(drivers::toString(request.scan.mode)));
+          std::string(toString(request.scan.mode)));
   ScanReport report = acquisition_->run(request.scan, plan, sinks,
                                         [&](const ScanProgress& p) { onProgress(job, p); });
   if (bundle) bundle->commit();
@@ -489,7 +488,7 @@ void ScanService::onProgress(Job& job, const ScanProgress& p) {
   events_.publish("progress", {{"id", job.record.id},
                                {"frames_done", p.frames_done},
                                {"frames_total", p.frames_total},
-                               {"set", std::string(formats::toString(p.set))},
+                               {"set", std::string(toString(p.set))},
                                {"progress", fraction}});
 }
 
@@ -590,7 +589,7 @@ bool ScanService::stopping() const {
 // and calibrated (mutex_ held).
 json ScanService::camerasJsonLocked() const {
   json out = json::array();
-  const bool ring = profile_.scan.plan == drivers::PlanKind::Ring;
+  const bool ring = scan_profile_.plan == PlanKind::Ring;
   for (const auto& camera : profile_.cameras) {
     out.push_back({{"name", camera.name},
                    {"scanned", ring || camera.name == "main"},

@@ -31,6 +31,7 @@
 #include "firmware/daemon/scan_store.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/scan_output.hpp"
+#include "firmware/scan_profile.hpp"
 
 namespace cylscan::firmware {
 
@@ -47,7 +48,7 @@ ScanServiceOptions scanServiceOptions(const DaemonConfig& config, std::string ve
 
 class ScanService final : public HeadService {
  public:
-  // Opens the board (sim::ConfigError / GpioError / CameraError as
+  // Opens the board (drivers::ConfigError / GpioError / CameraError as
   // drivers::Board::open), the acquisition and the data directory, and
   // starts the worker.
   explicit ScanService(ScanServiceOptions options);
@@ -134,6 +135,7 @@ class ScanService final : public HeadService {
 
   ScanServiceOptions options_;
   drivers::BoardProfile profile_;  // as opened (the default scene)
+  ScanProfile scan_profile_;       // its [scan], read when the service starts
   std::string board_name_;
   std::filesystem::path scenes_dir_;
   ScanStore store_;

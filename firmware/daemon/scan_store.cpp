@@ -9,7 +9,7 @@
 #include <cerrno>
 #include <system_error>
 
-#include "drivers/camera_name.hpp"
+#include "common/vocabulary.hpp"
 #include "firmware/daemon/head_service.hpp"
 #include "firmware/daemon/log.hpp"
 #include "formats/atomic_file.hpp"
@@ -203,7 +203,7 @@ std::optional<fs::path> ScanStore::file(std::string_view id, std::string_view na
 }
 
 std::optional<fs::path> ScanStore::cameraCloud(std::string_view id, std::string_view camera) const {
-  if (!isValidScanId(id) || !drivers::isCameraName(camera)) return std::nullopt;
+  if (!isValidScanId(id) || !isCameraName(camera)) return std::nullopt;
   {
     const std::lock_guard lock(mutex_);
     if (scans_.find(id) == scans_.end()) return std::nullopt;

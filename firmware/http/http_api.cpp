@@ -25,7 +25,7 @@
 #include <utility>
 #include <vector>
 
-#include "drivers/camera_name.hpp"
+#include "common/vocabulary.hpp"
 #include "firmware/http/auth.hpp"
 #include "firmware/http/files.hpp"
 #include "firmware/http/http_metrics.hpp"
@@ -605,9 +605,9 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       if (get) return jsonReply(200, json{{"main", service.calibrationInfo("main")}});
       const char* arg = MHD_lookup_connection_value(c, MHD_GET_ARGUMENT_KIND, "camera");
       const std::string camera = arg != nullptr ? arg : "main";
-      if (!drivers::isCameraName(camera)) {
+      if (!isCameraName(camera)) {
         return errorReply(400, "camera: '" + camera + "' is not a camera name (" +
-                                   std::string(drivers::kCameraNameRule) + ")");
+                                   std::string(kCameraNameRule) + ")");
       }
       return jsonReply(200, service.installCalibration(camera, r.body));
     }

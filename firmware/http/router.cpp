@@ -5,7 +5,7 @@
 #include <array>
 #include <utility>
 
-#include "drivers/camera_name.hpp"
+#include "common/vocabulary.hpp"
 #include "firmware/daemon/head_service.hpp"
 
 namespace cylscan::firmware::http {
@@ -155,11 +155,11 @@ Route route(std::string_view method, std::string_view path) {
         if (r.status != 0) return r;
         if (!isValidScanId(s[3])) return parameterNotFound(std::move(r), kNotAScanId);
         r.id = std::string(s[3]);
-        // <camera>.ply, the camera name by the board's rule (drivers::isCameraName).
+        // <camera>.ply, the camera name by the board's rule (isCameraName).
         const std::string_view file = s[5];
         const std::string_view camera =
             file.ends_with(".ply") ? file.substr(0, file.size() - 4) : std::string_view{};
-        if (!drivers::isCameraName(camera)) {
+        if (!isCameraName(camera)) {
           return parameterNotFound(std::move(r), "no such camera cloud: " + std::string(file) +
                                                      " (clouds/<camera>.ply)");
         }
@@ -178,7 +178,7 @@ Route route(std::string_view method, std::string_view path) {
       if (s.size() == 4) {
         Route r = withMethods(Endpoint::CalibrationFile, method, true, false, false, false);
         if (r.status != 0) return r;
-        if (!drivers::isCameraName(s[3])) {
+        if (!isCameraName(s[3])) {
           return parameterNotFound(std::move(r),
                                    "no such camera: the name is not a valid camera name");
         }

@@ -8,14 +8,20 @@
 #include "drivers/sim/geometry.hpp"
 #include "drivers/sim/head_config.hpp"
 #include "drivers/sim/virtual_head.hpp"
+#include "firmware/scan_profile.hpp"
 #include "profile_support.hpp"
 
 namespace cylscan::drivers {
 namespace {
 
+using firmware::PlanKind;
+using firmware::readScanProfile;
+using firmware::ScanMode;
+using firmware::ScanProfile;
 using test::boardDir;
 using test::hardwareGpio;
 using test::profileError;
+using test::scanError;
 using test::TempDir;
 using test::v4l2Main;
 
@@ -53,19 +59,21 @@ TEST(BoardProfile, LoadsTheSimBoard) {
   }
   EXPECT_EQ(p.camera("aux").device, "aux");
   EXPECT_THROW(p.camera("side"), std::invalid_argument);
-  EXPECT_EQ(p.scan.mode, ScanMode::StopAndGo);
-  EXPECT_DOUBLE_EQ(p.settleMs(), p.stage.settle_ms);
+  const ScanProfile scan = readScanProfile(p);
+  EXPECT_EQ(scan.mode, ScanMode::StopAndGo);
+  EXPECT_DOUBLE_EQ(firmware::settleMs(p, scan), p.stage.settle_ms);
 }
 
-// The scan defaults (the struct's and board/sim's) put the main camera's view
-// on the cylinder's high half for the high set and on the low half for the
-// low set, away from the halves' edges, and both sets 180° apart.
+// board/sim's start angles put the main camera's view on the cylinder's high
+// half for the high set and on the low half for the low set, away from the
+// halves' edges, and both sets 180° apart.
 TEST(BoardProfile, ScanDefaultsUseTheRightHalvesOfTheSimCylinder) {
   const BoardProfile p = loadBoardProfile(boardDir("sim"));
   const sim::VirtualHead head(p.sim->head, sim::Scene{}, 1);
   const sim::CameraModel& cam = head.cameraModel("main");
   const double margin = 10.0;  // degrees from a half's edge
-  for (const ScanProfile& scan : {ScanProfile{}, p.scan}) {
+  {
+    const ScanProfile scan = readScanProfile(p);
     for (double z : {540.0, 580.0, 620.0}) {
       for (double u : {0.0, cam.width() - 1.0}) {
         const sim::Vec3 d = cam.rayDirection(u, cam.height() / 2.0);
@@ -114,8 +122,6 @@ TEST(BoardProfile, DefaultsComeFromTheStructs) {
   EXPECT_EQ(p.stage.microsteps, stage.microsteps);
   EXPECT_DOUBLE_EQ(p.stage.settle_ms, stage.settle_ms);
   EXPECT_EQ(p.stage.home_direction, stage.home_direction);
-  EXPECT_EQ(p.scan.frames_high, 25);
-  EXPECT_EQ(p.scan.frames_low, 25);
   EXPECT_FALSE(p.gpio.fault.has_value());
   EXPECT_EQ(p.gpio.enable.chip, "gpiochip0");
   EXPECT_EQ(p.gpio.enable.offset, 22);
@@ -124,14 +130,24 @@ TEST(BoardProfile, DefaultsComeFromTheStructs) {
   EXPECT_EQ(p.cameras[0].trigger_line, "trigger");
 }
 
-TEST(BoardProfile, ScanSettleOverridesTheStage) {
+// The profile keeps [scan] for the firmware, which reads it with its defaults.
+TEST(BoardProfile, ScanIsTheFirmwaresToRead) {
   TempDir dir;
-  dir.write("board.toml", hardwareGpio() + v4l2Main() + "[scan]\nsettle_ms = 42.5\n");
-  EXPECT_DOUBLE_EQ(loadBoardProfile(dir.path()).settleMs(), 42.5);
+  dir.write("board.toml", hardwareGpio() + v4l2Main() +
+                              "[scan]\nsettle_ms = 42.5\nhigh_start_deg = 10.0\n"
+                              "low_start_deg = 190.0\n");
+  const BoardProfile p = loadBoardProfile(dir.path());
+  EXPECT_EQ(p.scanTable().size(), 3u);
+  const ScanProfile scan = readScanProfile(p);
+  EXPECT_DOUBLE_EQ(firmware::settleMs(p, scan), 42.5);
+  EXPECT_EQ(scan.frames_high, 25);
+  EXPECT_EQ(scan.frames_low, 25);
+  EXPECT_DOUBLE_EQ(scan.high_start_deg, 10.0);
+  EXPECT_DOUBLE_EQ(scan.low_start_deg, 190.0);
 }
 
 // Each fault: the message names the file, the line and the key.
-void expectFault(const sim::ConfigError& e, const std::filesystem::path& file, int line,
+void expectFault(const drivers::ConfigError& e, const std::filesystem::path& file, int line,
                  const std::string& key, const std::string& words) {
   EXPECT_EQ(e.file(), file.string());
   EXPECT_EQ(e.line(), line) << e.what();
@@ -162,8 +178,9 @@ TEST(BoardProfileFaults, UnknownKey) {
               file, 11, "gpio.stepp", "unknown key");
   expectFault(profileError(dir, hardwareGpio() + v4l2Main() + "focus = 3\n"), file, 16,
               "camera[0].focus", "unknown key");
-  expectFault(profileError(dir, hardwareGpio() + v4l2Main() + "[scan]\nframes = 25\n"), file, 17,
-              "scan.frames", "unknown key");
+  expectFault(scanError(dir, hardwareGpio() + v4l2Main() +
+                                "[scan]\nhigh_start_deg = 0.0\nlow_start_deg = 180.0\nframes = 25\n"),
+              file, 19, "scan.frames", "unknown key");
   expectFault(profileError(dir, hardwareGpio() + v4l2Main() + "[extras]\nx = 1\n"), file, 16,
               "extras", "unknown key");
   std::string text = hardwareGpio();
@@ -323,15 +340,27 @@ TEST(BoardProfileFaults, BadStageValues) {
               "stage.home_approach_speed_deg_s", "must be <= home_seek_speed_deg_s");
 }
 
+// Where the sets start depends on the home switch against the cylinder's
+// halves: no default, every board says it.
+TEST(BoardProfileFaults, TheSetsPlanNeedsItsStartAngles) {
+  TempDir dir;
+  const auto file = dir.path() / "board.toml";
+  const std::string base = hardwareGpio() + v4l2Main() + "[scan]\n";
+  expectFault(scanError(dir, base), file, 16, "scan.high_start_deg",
+              "is required with plan = \"sets\"");
+  expectFault(scanError(dir, base + "high_start_deg = 10.0\n"), file, 16, "scan.low_start_deg",
+              "is required with plan = \"sets\"");
+}
+
 TEST(BoardProfileFaults, BadScanValues) {
   TempDir dir;
   const auto file = dir.path() / "board.toml";
   const std::string base = hardwareGpio() + v4l2Main() + "[scan]\n";
-  expectFault(profileError(dir, base + "frames_high = 2\n"), file, 17, "scan.frames_high",
+  expectFault(scanError(dir, base + "frames_high = 2\n"), file, 17, "scan.frames_high",
               "must be in [3, 1000]");
-  expectFault(profileError(dir, base + "low_start_deg = 360.0\n"), file, 17, "scan.low_start_deg",
-              "must be in [0, 360)");
-  expectFault(profileError(dir, base + "mode = \"sweep\"\n"), file, 17, "scan.mode",
+  expectFault(scanError(dir, base + "high_start_deg = 0.0\nlow_start_deg = 360.0\n"), file, 18,
+              "scan.low_start_deg", "must be in [0, 360)");
+  expectFault(scanError(dir, base + "mode = \"sweep\"\n"), file, 17, "scan.mode",
               "unknown mode 'sweep'");
 }
 
@@ -342,39 +371,40 @@ TEST(BoardProfile, RingPlanKeys) {
                               "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
                               "step_deg = 0.212\nhigh_half_start_deg = 10.0\n");
   const BoardProfile p = loadBoardProfile(dir.path());
-  EXPECT_EQ(p.scan.plan, PlanKind::Ring);
-  EXPECT_DOUBLE_EQ(p.scan.step_deg, 0.212);
-  EXPECT_DOUBLE_EQ(p.scan.high_half_start_deg, 10.0);
+  const ScanProfile scan = readScanProfile(p);
+  EXPECT_EQ(scan.plan, PlanKind::Ring);
+  EXPECT_DOUBLE_EQ(scan.step_deg, 0.212);
+  EXPECT_DOUBLE_EQ(scan.high_half_start_deg, 10.0);
   ASSERT_TRUE(p.camera("main").azimuth_deg.has_value());
   EXPECT_DOUBLE_EQ((*p.camera("main").azimuth_deg)[0], -20.0);
-  EXPECT_EQ(p.scan.frames_low, p.scan.frames_high);
-  EXPECT_EQ(toString(p.scan.plan), "ring");
+  EXPECT_EQ(scan.frames_low, scan.frames_high);
+  EXPECT_EQ(firmware::toString(scan.plan), "ring");
 }
 
 TEST(BoardProfileFaults, BadRingValues) {
   TempDir dir;
   const auto file = dir.path() / "board.toml";
   const std::string base = hardwareGpio() + v4l2Main();
-  expectFault(profileError(dir, base + "[scan]\nplan = \"ring\"\n"), file, 12,
-              "camera[0].azimuth_deg", "is required with [scan] plan = \"ring\"");
+  expectFault(scanError(dir, base + "[scan]\nplan = \"ring\"\n"), file, 17, "scan.plan",
+              "needs azimuth_deg");
   expectFault(profileError(dir, base + "azimuth_deg = [5.0, -3.0]\n"), file, 16,
               "camera[0].azimuth_deg", "lo < hi");
-  expectFault(profileError(dir, base + "[scan]\nplan = \"spiral\"\n"), file, 17, "scan.plan",
+  expectFault(scanError(dir, base + "[scan]\nplan = \"spiral\"\n"), file, 17, "scan.plan",
               "unknown plan 'spiral'");
-  expectFault(profileError(dir, base + "[scan]\nstep_deg = 0.2\n"), file, 17, "scan.step_deg",
+  expectFault(scanError(dir, base + "[scan]\nstep_deg = 0.2\n"), file, 17, "scan.step_deg",
               "only with plan = \"ring\"");
-  expectFault(profileError(dir, base + "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
-                                       "frames_high = 25\nframes_low = 20\n"),
+  expectFault(scanError(dir, base + "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
+                                    "frames_high = 25\nframes_low = 20\n"),
               file, 20, "scan.frames_low", "must equal frames_high");
-  expectFault(profileError(dir, base + "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
-                                       "high_start_deg = 235.98\n"),
+  expectFault(scanError(dir, base + "azimuth_deg = [-20.0, -3.0]\n[scan]\nplan = \"ring\"\n"
+                                    "high_start_deg = 235.98\n"),
               file, 19, "scan.high_start_deg", "not used with plan = \"ring\"");
 }
 
 TEST(BoardProfileFaults, SyntaxError) {
   TempDir dir;
   const auto file = dir.path() / "board.toml";
-  const sim::ConfigError e = profileError(dir, "[board]\nname = \"x\"\n[gpio\n");
+  const drivers::ConfigError e = profileError(dir, "[board]\nname = \"x\"\n[gpio\n");
   EXPECT_EQ(e.file(), file.string());
   EXPECT_EQ(e.line(), 3);
 }

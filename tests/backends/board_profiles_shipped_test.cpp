@@ -13,6 +13,7 @@
 
 #include "drivers/board_profile.hpp"
 #include "drivers/sim/head_config.hpp"
+#include "firmware/scan_profile.hpp"
 #include "profile_support.hpp"
 
 namespace cylscan::drivers {
@@ -167,7 +168,9 @@ TEST(ShippedBoardProfiles, EachLoadsAndDeclaresItsLinesAndCamera) {
     }
     // A stage the step executor can drive: whole steps per degree well above one.
     EXPECT_GT(p.stage.stepsPerDeg(), 10.0);
-    EXPECT_NE(p.scan.period_high_deg, p.scan.period_low_deg);
+    // Its [scan] is one the firmware reads (start angles, a plan it knows).
+    const firmware::ScanProfile scan = firmware::readScanProfile(p);
+    EXPECT_NE(scan.period_high_deg, scan.period_low_deg);
   }
 }
 

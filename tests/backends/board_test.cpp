@@ -170,8 +170,8 @@ TEST(Board, AMissingLibcameraCameraIsAnErrorNamingIt) {
 TEST(Board, ABadProfileIsAConfigError) {
   TempDir dir;
   dir.write("board.toml", "[board]\nname = \"x\"\nspeed = 3\n");
-  EXPECT_THROW(Board::open(dir.path()), sim::ConfigError);
-  EXPECT_THROW(Board::open(dir.path() / "missing"), sim::ConfigError);
+  EXPECT_THROW(Board::open(dir.path()), drivers::ConfigError);
+  EXPECT_THROW(Board::open(dir.path() / "missing"), drivers::ConfigError);
 }
 
 }  // namespace

@@ -12,7 +12,8 @@
 #include <gtest/gtest.h>
 
 #include "drivers/board_profile.hpp"
-#include "drivers/sim/toml_reader.hpp"
+#include "drivers/toml_reader.hpp"
+#include "firmware/scan_profile.hpp"
 
 namespace cylscan::drivers::test {
 
@@ -48,15 +49,27 @@ device = "/dev/video0"
 }
 
 // The ConfigError of loading `text` as a board.toml.
-inline sim::ConfigError profileError(const TempDir& dir, const std::string& text) {
+inline drivers::ConfigError profileError(const TempDir& dir, const std::string& text) {
   const auto file = dir.write("board.toml", text);
   try {
     loadBoardProfile(dir.path());
-  } catch (const sim::ConfigError& e) {
+  } catch (const drivers::ConfigError& e) {
     return e;
   }
   ADD_FAILURE() << "the profile loaded:\n" << text;
-  return sim::ConfigError(file.string(), 0, "", "no error");
+  return drivers::ConfigError(file.string(), 0, "", "no error");
+}
+
+// The ConfigError of reading the [scan] of `text` (a board.toml the drivers accept).
+inline drivers::ConfigError scanError(const TempDir& dir, const std::string& text) {
+  const auto file = dir.write("board.toml", text);
+  try {
+    firmware::readScanProfile(loadBoardProfile(dir.path()));
+  } catch (const drivers::ConfigError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "the [scan] was read:\n" << text;
+  return drivers::ConfigError(file.string(), 0, "", "no error");
 }
 
 }  // namespace cylscan::drivers::test

@@ -290,7 +290,7 @@ TEST(QuasiCalibration, PooledRmseReflectsPhaseNoise) {
 QuasiCalibration smallCalibration() {
   const CubicTruth truth(14);
   QuasiCalibrationOptions options;
-  options.phase_source = PhaseSource::kHigh;
+  options.phase_source = PhaseSource::High;
   QuasiCalibrationFitter fitter(truth.size, options);
   cv::Mat phase, xyz;
   for (int j = 0; j < 7; ++j) {
@@ -315,7 +315,7 @@ TEST(QuasiCalibrationFile, RoundTripIsBitExact) {
   const QuasiCalibration loaded = QuasiCalibration::deserialize(bytes);
   EXPECT_EQ(loaded.serialize(), bytes);
   EXPECT_EQ(loaded.size(), original.size());
-  EXPECT_EQ(loaded.info().phase_source, PhaseSource::kHigh);
+  EXPECT_EQ(loaded.info().phase_source, PhaseSource::High);
   EXPECT_EQ(loaded.info().pose_count, 7u);
   EXPECT_EQ(loaded.info().min_poses, 6u);
   EXPECT_EQ(loaded.info().pooled_rmse_mm, 0.085f);

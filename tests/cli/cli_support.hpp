@@ -77,7 +77,7 @@ inline SyntheticBundle writeSyntheticBundle(const std::filesystem::path& dir, cv
     info.low.stage_deg.push_back(stepQuantised(12.0 - 180.0 + k * kLow / frames));
   }
   formats::CaptureBundleWriter writer(dir, info);
-  for (const auto set : formats::kFringeSets) {
+  for (const auto set : kFringeSets) {
     const auto& s = info.set(set);
     for (int k = 0; k < frames; ++k) {
       const double delta = kTwoPi * (s.stage_deg[k] - s.stage_deg[0]) / s.period_deg;

@@ -27,7 +27,7 @@ constexpr double kZ0 = 500.0, kZPerRad = 2.0;
 // A calibration of `size` fitted from 8 poses around `phase` (or around 20 rad
 // when phase is empty), with the exact targets of the model above.
 void writeCalibration(const fs::path& file, cv::Size size, const cv::Mat& phase = cv::Mat(),
-                      algo::PhaseSource source = algo::PhaseSource::kFused) {
+                      PhaseSource source = PhaseSource::Fused) {
   algo::QuasiCalibrationOptions options;
   options.phase_source = source;
   algo::QuasiCalibrationFitter fitter(size, options);

@@ -17,7 +17,6 @@ namespace cylscan::test {
 namespace {
 
 namespace fs = std::filesystem;
-using formats::FringeSetId;
 
 nlohmann::json jsonOf(const std::string& output) {
   return nlohmann::json::parse(output.substr(output.find('{')));
@@ -55,7 +54,7 @@ TEST(RingScanCommand, ScansEveryCameraAndEachCamerasPhaseComesFromItsOwnSets) {
     const bool swapped = ring.at("cameras").at(camera) == "low";
     EXPECT_EQ(reader.info().hasOwnSets(camera), swapped);
     // A swapped camera's high set is sweep 2, main's low set.
-    EXPECT_EQ(reader.info().setOf(camera, FringeSetId::High).stage_deg,
+    EXPECT_EQ(reader.info().setOf(camera, FringeSet::High).stage_deg,
               summary.at("stage_deg").at(swapped ? "low" : "high").get<std::vector<double>>());
     const fs::path out = dir.path() / ("p-" + camera);
     const auto phase = runTool("phase --json --camera " + camera + " --out " + out.string() + " " +

@@ -33,7 +33,7 @@ TEST(ScanCommand, WritesABundleWithTheExecutedAngles) {
   EXPECT_EQ(summary.at("frames").get<int>(), 18);
   const formats::CaptureBundleReader bundle(dir.path() / "b");
   EXPECT_EQ(bundle.info().cameras, (std::vector<std::string>{"main", "aux"}));
-  ASSERT_EQ(bundle.frameCount(formats::FringeSetId::High), 9);
+  ASSERT_EQ(bundle.frameCount(FringeSet::High), 9);
   EXPECT_EQ(bundle.info().high.stage_deg,
             summary.at("stage_deg").at("high").get<std::vector<double>>());
   EXPECT_EQ(bundle.frameSize("aux"), cv::Size(160, 128));

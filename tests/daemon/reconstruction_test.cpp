@@ -53,11 +53,13 @@ TEST(Reconstruction, CloudAndDepthKeepOnlyFinitePoints) {
   EXPECT_FLOAT_EQ(depth.at<float>(0, 0), 3.0f);
 }
 
-TEST(Reconstruction, PhaseChoice) {
-  EXPECT_EQ(parsePhaseChoice("high"), PhaseChoice::kHigh);
-  EXPECT_EQ(toString(parsePhaseChoice("fused")), "fused");
-  EXPECT_THROW(parsePhaseChoice("low"), std::invalid_argument);
-  EXPECT_EQ(phaseChoiceOf(algo::PhaseSource::kHigh), PhaseChoice::kHigh);
+TEST(Reconstruction, PhaseSource) {
+  EXPECT_EQ(parsePhaseSource("high"), PhaseSource::High);
+  EXPECT_EQ(toString(parsePhaseSource("fused")), "fused");
+  EXPECT_THROW(parsePhaseSource("low"), std::invalid_argument);
+  // The values are stored in .qcal files, so they may never change.
+  EXPECT_EQ(static_cast<std::uint32_t>(PhaseSource::High), 0u);
+  EXPECT_EQ(static_cast<std::uint32_t>(PhaseSource::Fused), 1u);
 }
 
 }  // namespace

@@ -47,7 +47,7 @@ ScanRecord done() {
   r.duration_s = 8.5;
   r.frames_done = 10;
   r.files = {"cloud.ply", "depth.tiff", "texture.png", "phase.png", "depth.png"};
-  r.output = OutputFigures{PhaseChoice::kFused, 0.625, std::size_t{12800}, std::nullopt};
+  r.output = OutputFigures{PhaseSource::Fused, 0.625, std::size_t{12800}, std::nullopt};
   r.acquisition = acquisition();
   r.bundle = "bundle";
   return r;
@@ -111,8 +111,8 @@ TEST(ScanRecord, ARingScanAddsItsCamerasAndTheMergedCloud) {
   ScanRecord r = done();
   r.bundle.reset();
   RingOutput ring;
-  ring.cameras = {{"main", true, 20480, PhaseChoice::kFused, 0.5, "clouds/main.ply"},
-                  {"cam90", false, 0, PhaseChoice::kFused, 0.0, ""}};
+  ring.cameras = {{"main", true, 20480, PhaseSource::Fused, 0.5, "clouds/main.ply"},
+                  {"cam90", false, 0, PhaseSource::Fused, 0.0, ""}};
   ring.cloud = MergedCloud::kMain;
   ring.cloud_note = "no head extrinsics installed (PUT /api/v1/head) for cam90";
   r.output->ring = ring;
@@ -140,7 +140,7 @@ TEST(ScanRecord, AnEarlierRecordWithoutLaterFieldsIsRead) {
   EXPECT_EQ(r.state, ScanState::kDone);
   EXPECT_EQ(r.files, (std::vector<std::string>{"texture.png", "phase.png"}));
   ASSERT_TRUE(r.output);
-  EXPECT_EQ(r.output->phase, PhaseChoice::kHigh);
+  EXPECT_EQ(r.output->phase, PhaseSource::High);
   EXPECT_FALSE(r.output->points);
   ASSERT_TRUE(r.acquisition);
   EXPECT_EQ(r.acquisition->step_reramps, 0);

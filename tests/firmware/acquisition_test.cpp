@@ -97,8 +97,8 @@ TEST(Acquisition, StopAndGoStreamsTheHeadsPhaseAndSavesTheSameBundle) {
   EXPECT_LE(std::abs(report.step_check->lostSteps()), 2);
   // The executed angles are the plan's step positions, and where the head's
   // stage was (its own count) at the end of the last frame.
-  EXPECT_EQ(report.high_deg, scan.plan.anglesDeg(formats::FringeSetId::High));
-  EXPECT_EQ(report.low_deg, scan.plan.anglesDeg(formats::FringeSetId::Low));
+  EXPECT_EQ(report.high_deg, scan.plan.anglesDeg(FringeSet::High));
+  EXPECT_EQ(report.low_deg, scan.plan.anglesDeg(FringeSet::Low));
   EXPECT_FALSE(scan.head().lightOn());
   EXPECT_FALSE(scan.head().stage().enabled());
 
@@ -118,10 +118,10 @@ TEST(Acquisition, StopAndGoStreamsTheHeadsPhaseAndSavesTheSameBundle) {
   algo::PhaseEngine offline(
       reader.frameSize("main"), {reader.info().high.period_deg, reader.info().high.stage_deg},
       {reader.info().low.period_deg, reader.info().low.stage_deg}, phase_options);
-  for (const auto set : formats::kFringeSets) {
+  for (const auto set : kFringeSets) {
     for (int k = 0; k < reader.frameCount(set); ++k) {
-      offline.fold(set == formats::FringeSetId::High ? algo::FringeSet::High : algo::FringeSet::Low,
-                   k, reader.readFrame("main", set, k));
+      offline.fold(set == FringeSet::High ? FringeSet::High : FringeSet::Low, k,
+                   reader.readFrame("main", set, k));
     }
   }
   const algo::PhaseMaps again = offline.finalize();
@@ -141,7 +141,7 @@ TEST(Acquisition, ContinuousModeGivesTheSamePhaseInFewerSeconds) {
 
   Scan sweep(
       smallBoard(dir, test_support::kWallScene, {{"mode = \"stop\"", "mode = \"continuous\""}}));
-  ASSERT_EQ(sweep.options.mode, drivers::ScanMode::Continuous);
+  ASSERT_EQ(sweep.options.mode, firmware::ScanMode::Continuous);
   PhaseSink sweep_phase(sweep.plan, {});
   Acquisition sweep_acquisition(sweep.board);
   const ScanReport report = sweep_acquisition.run(sweep.options, sweep.plan, sweep_phase);

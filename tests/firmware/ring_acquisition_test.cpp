@@ -34,7 +34,6 @@ namespace cylscan::firmware {
 namespace {
 
 namespace fs = std::filesystem;
-using formats::FringeSetId;
 using test_support::ringBoard;
 using test_support::TempDir;
 constexpr double kPi = std::numbers::pi;
@@ -58,11 +57,11 @@ struct Scan {
 class RecordingSink final : public FrameSink {
  public:
   struct Frame {
-    FringeSetId set;
+    FringeSet set;
     int k;
     double stage_deg;
   };
-  void onFrame(std::string_view camera, FringeSetId set, int k, double stage_deg,
+  void onFrame(std::string_view camera, FringeSet set, int k, double stage_deg,
                const cv::Mat&) override {
     frames[std::string(camera)].push_back({set, k, stage_deg});
   }
@@ -74,7 +73,7 @@ class RecordingSink final : public FrameSink {
 // that lights every lit pixel of the camera at every frame of the motion set.
 // `mixed` counts the pixel-frames lit by the other half (0 for a good plan).
 struct Role {
-  FringeSetId set = FringeSetId::High;
+  FringeSet set = FringeSet::High;
   long mixed = 0;
   long pixels = 0;
 };
@@ -95,7 +94,7 @@ Role roleFromHead(sim::VirtualHead& head, const std::string& camera,
       }
     }
   }
-  role.set = high >= low ? FringeSetId::High : FringeSetId::Low;
+  role.set = high >= low ? FringeSet::High : FringeSet::Low;
   role.mixed = std::min(high, low);
   return role;
 }
@@ -103,7 +102,7 @@ Role roleFromHead(sim::VirtualHead& head, const std::string& camera,
 // A camera's roles in the two sweeps, and so the executed angles of its own
 // sets, from the head (the report's executed angles of the motion sets).
 struct CameraTruth {
-  FringeSetId first_sweep = FringeSetId::High;
+  FringeSet first_sweep = FringeSet::High;
   std::vector<double> high_deg, low_deg;
 };
 
@@ -116,8 +115,8 @@ CameraTruth truthOf(sim::VirtualHead& head, const std::string& camera, const Sca
   EXPECT_NE(sweep1.set, sweep2.set) << camera << ": the same half in both sweeps";
   CameraTruth t;
   t.first_sweep = sweep1.set;
-  t.high_deg = sweep1.set == FringeSetId::High ? report.high_deg : report.low_deg;
-  t.low_deg = sweep1.set == FringeSetId::High ? report.low_deg : report.high_deg;
+  t.high_deg = sweep1.set == FringeSet::High ? report.high_deg : report.low_deg;
+  t.low_deg = sweep1.set == FringeSet::High ? report.low_deg : report.high_deg;
   return t;
 }
 
@@ -190,11 +189,11 @@ void expectPhaseOfHead(sim::VirtualHead& head, const std::string& mode, PhaseSin
     const algo::PhaseMaps maps = phase.finalize(camera);
     const CameraPhaseError e = compareWithHead(head, camera, maps, truth);
     std::cout << "[ring] " << mode << " " << camera
-              << (truth.first_sweep == FringeSetId::High ? " (sweep 1 high)" : " (sweep 1 low)")
+              << (truth.first_sweep == FringeSet::High ? " (sweep 1 high)" : " (sweep 1 low)")
               << ": absolute vs head rms " << e.absolute.rms << " worst " << e.absolute.worst
               << ", wrapped low rms " << e.wrapped_low.rms << " worst " << e.wrapped_low.worst
               << " over " << e.absolute.pixels << " px, valid " << maps.valid_fraction << "\n";
-    EXPECT_EQ(plan.setOf(camera, FringeSetId::High), truth.first_sweep);
+    EXPECT_EQ(plan.setOf(camera, FringeSet::High), truth.first_sweep);
     EXPECT_GT(e.absolute.pixels, 160 * 128 * 8 / 10);
     EXPECT_LT(e.absolute.rms, 0.01);
     EXPECT_LT(e.absolute.worst, 0.1);
@@ -237,12 +236,11 @@ TEST(RingAcquisition, EveryCameraGetsBothSetsInItsRoleAndTheHeadsPhase) {
     ASSERT_EQ(frames.size(), static_cast<std::size_t>(2 * n));
     for (int i = 0; i < 2 * n; ++i) {
       const auto& f = frames[static_cast<std::size_t>(i)];
-      const FringeSetId expected = (i < n) == (truth.first_sweep == FringeSetId::High)
-                                       ? FringeSetId::High
-                                       : FringeSetId::Low;
+      const FringeSet expected =
+          (i < n) == (truth.first_sweep == FringeSet::High) ? FringeSet::High : FringeSet::Low;
       EXPECT_EQ(f.set, expected) << "frame " << i;
       EXPECT_EQ(f.k, i % n);
-      const auto& angles = f.set == FringeSetId::High ? truth.high_deg : truth.low_deg;
+      const auto& angles = f.set == FringeSet::High ? truth.high_deg : truth.low_deg;
       EXPECT_EQ(f.stage_deg, angles[static_cast<std::size_t>(i % n)]) << "frame " << i;
     }
     EXPECT_EQ(phase.folded(camera), 2 * n);
@@ -266,20 +264,19 @@ TEST(RingAcquisition, EveryCameraGetsBothSetsInItsRoleAndTheHeadsPhase) {
   for (const std::string& camera : kCameras) {
     SCOPED_TRACE(camera);
     const CameraTruth truth = truthOf(scan.head(), camera, report);
-    EXPECT_EQ(reader.info().setOf(camera, FringeSetId::High).stage_deg, truth.high_deg);
-    EXPECT_EQ(reader.info().setOf(camera, FringeSetId::Low).stage_deg, truth.low_deg);
-    EXPECT_EQ(reader.info().hasOwnSets(camera), truth.first_sweep == FringeSetId::Low);
-    EXPECT_EQ(reader.info().extra.at("ring").at("cameras").at(camera),
-              formats::toString(truth.first_sweep));
-    auto geometryOf = [&](FringeSetId id) {
+    EXPECT_EQ(reader.info().setOf(camera, FringeSet::High).stage_deg, truth.high_deg);
+    EXPECT_EQ(reader.info().setOf(camera, FringeSet::Low).stage_deg, truth.low_deg);
+    EXPECT_EQ(reader.info().hasOwnSets(camera), truth.first_sweep == FringeSet::Low);
+    EXPECT_EQ(reader.info().extra.at("ring").at("cameras").at(camera), toString(truth.first_sweep));
+    auto geometryOf = [&](FringeSet id) {
       const formats::FringeSetInfo& set = reader.info().setOf(camera, id);
       return algo::FringeSetGeometry{set.period_deg, set.stage_deg};
     };
-    algo::PhaseEngine offline(reader.frameSize(camera), geometryOf(FringeSetId::High),
-                              geometryOf(FringeSetId::Low), {});
-    for (const FringeSetId id : formats::kFringeSets) {
+    algo::PhaseEngine offline(reader.frameSize(camera), geometryOf(FringeSet::High),
+                              geometryOf(FringeSet::Low), {});
+    for (const FringeSet id : kFringeSets) {
       for (int k = 0; k < reader.frameCount(camera, id); ++k)
-        offline.fold(id == FringeSetId::High ? algo::FringeSet::High : algo::FringeSet::Low, k,
+        offline.fold(id == FringeSet::High ? FringeSet::High : FringeSet::Low, k,
                      reader.readFrame(camera, id, k));
     }
     const algo::PhaseMaps a = phase.finalize(camera);
@@ -341,7 +338,7 @@ void expectFourCamerasAsFastAsOne(const std::vector<std::pair<std::string, std::
             << t1_sets << " s (sets " << seconds(sets_report.set_duration[0]) << " + "
             << seconds(sets_report.set_duration[1]) << " s, ratio " << t4 / t1_sets << ")\n";
   EXPECT_EQ(four_report.frames, one_report.frames);
-  if (four.options.mode == drivers::ScanMode::Continuous) {
+  if (four.options.mode == firmware::ScanMode::Continuous) {
     // A sweep's frames come one camera frame period apart, not faster: the
     // speed follows the ring's common step Δ, not θ/N (with θl/N a low sweep
     // would trigger at 31.8 Hz, beyond the cameras' 30 Hz). Averaged over a
@@ -423,7 +420,7 @@ TEST(RingAcquisition, ACamerasSetsAreAPlanOfTheirOwn) {
   for (const std::string& camera : kCameras) {
     const ScanPlan own = cameraSetsPlan(scan.plan, camera);
     EXPECT_FALSE(own.ring);
-    for (const FringeSetId id : formats::kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       EXPECT_EQ(own.set(id).positions, scan.plan.motionSetOf(camera, id).positions) << camera;
       EXPECT_EQ(own.setOf("main", id), id);
       EXPECT_EQ(own.anglesDeg(id), scan.plan.anglesDeg(camera, id)) << camera;

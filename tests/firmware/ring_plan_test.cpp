@@ -20,8 +20,6 @@
 namespace cylscan::firmware {
 namespace {
 
-using formats::FringeSetId;
-
 // The paper's camera (board/sim's main, 540–620 mm) spans these azimuths; the
 // 360° head's cameras are it turned by 0, 90, 180 and 270 degrees.
 constexpr double kMainLo = -20.15;
@@ -29,7 +27,7 @@ constexpr double kMainHi = -2.88;
 
 ScanOptions ringOptions(const std::vector<std::pair<std::string, double>>& cameras) {
   ScanOptions o;
-  o.plan = drivers::PlanKind::Ring;
+  o.plan = firmware::PlanKind::Ring;
   o.frames_high = o.frames_low = 25;
   o.cameras.clear();
   for (const auto& [name, turn] : cameras) {
@@ -83,16 +81,16 @@ TEST(RingPlan, EveryCameraInsideOneEquivalentPeriodAndOffTheHalfBoundaries) {
       EXPECT_TRUE(clearOfGrid(az.lo_deg - rho0, hi, 0.0, 45.0, o.ring_margin_deg))
           << "straddles an equivalent-period wrap";
       // The set this sweep gives the camera is the half it faces.
-      const FringeSetId faced = wrap360(lo) < 180.0 ? FringeSetId::High : FringeSetId::Low;
+      const FringeSet faced = wrap360(lo) < 180.0 ? FringeSet::High : FringeSet::Low;
       EXPECT_EQ(plan.setOf(az.camera, sweep.set), faced);
     }
   }
   // Main takes its high set from sweep 1; the cameras turned by 90° and 180°
   // face the low half then (their wall angles are 90° and 180° further on).
-  EXPECT_EQ(plan.setOf("main", FringeSetId::High), FringeSetId::High);
-  EXPECT_EQ(plan.setOf("cam90", FringeSetId::High), FringeSetId::Low);
-  EXPECT_EQ(plan.setOf("cam180", FringeSetId::High), FringeSetId::Low);
-  EXPECT_EQ(plan.setOf("cam270", FringeSetId::High), FringeSetId::High);
+  EXPECT_EQ(plan.setOf("main", FringeSet::High), FringeSet::High);
+  EXPECT_EQ(plan.setOf("cam90", FringeSet::High), FringeSet::Low);
+  EXPECT_EQ(plan.setOf("cam180", FringeSet::High), FringeSet::Low);
+  EXPECT_EQ(plan.setOf("cam270", FringeSet::High), FringeSet::High);
   EXPECT_EQ(plan.swapped.size(), 2u);
   for (const auto& c : ring.cameras) {
     EXPECT_GE(c.window_margin_deg, o.ring_margin_deg) << c.camera;
@@ -103,12 +101,12 @@ TEST(RingPlan, EveryCameraInsideOneEquivalentPeriodAndOffTheHalfBoundaries) {
 TEST(RingPlan, CamerasGetTheirOwnSetsAnglesAndPeriods) {
   const ScanPlan plan = planScan(fourCameras(), drivers::StageConfig{});
   // A swapped camera's high set is sweep 2, and the angles are executed steps.
-  EXPECT_EQ(plan.anglesDeg("cam90", FringeSetId::High), plan.anglesDeg(FringeSetId::Low));
-  EXPECT_EQ(plan.anglesDeg("cam90", FringeSetId::Low), plan.anglesDeg(FringeSetId::High));
-  EXPECT_EQ(plan.anglesDeg("main", FringeSetId::High), plan.anglesDeg(FringeSetId::High));
-  EXPECT_EQ(&plan.motionSetOf("cam180", FringeSetId::High), &plan.low);
-  EXPECT_DOUBLE_EQ(plan.periodDeg(FringeSetId::High), 5.0);
-  EXPECT_DOUBLE_EQ(plan.periodDeg(FringeSetId::Low), 5.625);
+  EXPECT_EQ(plan.anglesDeg("cam90", FringeSet::High), plan.anglesDeg(FringeSet::Low));
+  EXPECT_EQ(plan.anglesDeg("cam90", FringeSet::Low), plan.anglesDeg(FringeSet::High));
+  EXPECT_EQ(plan.anglesDeg("main", FringeSet::High), plan.anglesDeg(FringeSet::High));
+  EXPECT_EQ(&plan.motionSetOf("cam180", FringeSet::High), &plan.low);
+  EXPECT_DOUBLE_EQ(plan.periodDeg(FringeSet::High), 5.0);
+  EXPECT_DOUBLE_EQ(plan.periodDeg(FringeSet::Low), 5.625);
 }
 
 TEST(RingPlan, NoiseGainIsOneForEqualShiftsOverAPeriod) {
@@ -161,7 +159,7 @@ TEST(RingPlan, RefusesCamerasThatNoStartSeparates) {
   // Two volumes 1° apart, each 30° wide: a wrap would have to fall in the 1°
   // gap with 1° to spare on both sides.
   ScanOptions o;
-  o.plan = drivers::PlanKind::Ring;
+  o.plan = firmware::PlanKind::Ring;
   o.cameras = {"main", "side"};
   o.azimuths = {{"main", 0.0, 30.0}, {"side", 31.0, 61.0}};
   try {
@@ -207,8 +205,8 @@ TEST(RingPlan, SetsPlanIsUnchanged) {
   const ScanPlan plan = planScan(o, drivers::StageConfig{});
   EXPECT_FALSE(plan.ring.has_value());
   EXPECT_TRUE(plan.swapped.empty());
-  EXPECT_EQ(plan.setOf("main", FringeSetId::Low), FringeSetId::Low);
-  EXPECT_EQ(plan.anglesDeg("aux", FringeSetId::High), plan.anglesDeg(FringeSetId::High));
+  EXPECT_EQ(plan.setOf("main", FringeSet::Low), FringeSet::Low);
+  EXPECT_EQ(plan.anglesDeg("aux", FringeSet::High), plan.anglesDeg(FringeSet::High));
   EXPECT_DOUBLE_EQ(plan.high.step_deg, 0.2);
 }
 

@@ -67,8 +67,7 @@ Acquired& ringScan() {
 
 // Valid at every pixel over a phase range far wider than a scan's (|Φ| <
 // 10^4): X = u, Y = v, Z = 600 + 10·t.
-algo::QuasiCalibration everywhere(cv::Size size,
-                                  algo::PhaseSource source = algo::PhaseSource::kFused) {
+algo::QuasiCalibration everywhere(cv::Size size, PhaseSource source = PhaseSource::Fused) {
   std::vector<std::uint8_t> valid(static_cast<std::size_t>(size.area()), 1);
   std::vector<algo::PixelPolynomial> pixels(valid.size());
   std::size_t i = 0;
@@ -126,14 +125,14 @@ TEST(ScanOutput, UncalibratedTheDaemonGetsThePreviewsAlone) {
   const algo::PhaseMaps maps = scan.phase.finalize("main");
   TempDir out;
   ScanOutputOptions options;
-  options.phase = PhaseChoice::kHigh;
+  options.phase = PhaseSource::High;
   const ScanResult result = writeScanOutput(scan.phase, {}, options, out.path());
   EXPECT_EQ(result.files, (std::vector<std::string>{"texture.png", "phase.png"}));
   EXPECT_EQ(entries(out.path()), (std::set<std::string>{"texture.png", "phase.png"}));
   EXPECT_FALSE(result.calibrated);
   EXPECT_FALSE(result.figures.points);
   EXPECT_FALSE(result.figures.ring);
-  EXPECT_EQ(result.figures.phase, PhaseChoice::kHigh);
+  EXPECT_EQ(result.figures.phase, PhaseSource::High);
   EXPECT_EQ(result.figures.phase_valid_fraction, maps.valid_fraction);
   EXPECT_GT(maps.valid_fraction, 0.5);
   const cv::Mat texture = formats::readPng(out.path() / "texture.png");
@@ -153,7 +152,7 @@ TEST(ScanOutput, CalibratedEveryValidPixelIsAPointOfTheCloudAndTheDepth) {
   EXPECT_EQ(result.files, files);
   EXPECT_EQ(entries(out.path()), std::set<std::string>(files.begin(), files.end()));
   EXPECT_TRUE(result.calibrated);
-  EXPECT_EQ(result.figures.phase, PhaseChoice::kFused);
+  EXPECT_EQ(result.figures.phase, PhaseSource::Fused);
   ASSERT_TRUE(result.figures.points);
   const std::size_t points = *result.figures.points;
   EXPECT_EQ(points, validPixels(maps));
@@ -172,7 +171,7 @@ TEST(ScanOutput, TheCommandLinesCloudWhereItIsAskedWithThePhaseAskedFor) {
   ScanCalibrations calibrations;
   calibrations.main = everywhere({160, 128});
   ScanOutputOptions options;
-  options.phase = PhaseChoice::kHigh;
+  options.phase = PhaseSource::High;
   options.cloud = (out.path() / "scan.ply").string();  // absolute: used as it is
   options.depth = "";
   options.previews = false;
@@ -230,7 +229,7 @@ struct RingOutputs {
   ScanOutputOptions options;
   RingOutputs() {
     calibrations.main = everywhere({160, 128});
-    install(everywhere({160, 128}, algo::PhaseSource::kHigh), calib.path() / "cam90.qcal");
+    install(everywhere({160, 128}, PhaseSource::High), calib.path() / "cam90.qcal");
     calibrations.installed = CalibrationDir(calib.path());
     options.ring_cameras = {"main", "cam90"};
   }
@@ -255,10 +254,10 @@ TEST(ScanOutput, ARingScanWithoutHeadJsonHasEveryCamerasCloudAndMainsAloneMerged
   const RingOutput& r = *result.figures.ring;
   ASSERT_EQ(r.cameras.size(), 2u);
   EXPECT_EQ(r.cameras[0].points, finitePixels(main.fused));
-  EXPECT_EQ(r.cameras[0].phase, PhaseChoice::kFused);
+  EXPECT_EQ(r.cameras[0].phase, PhaseSource::Fused);
   EXPECT_EQ(r.cameras[1].camera, "cam90");
   EXPECT_TRUE(r.cameras[1].calibrated);
-  EXPECT_EQ(r.cameras[1].phase, PhaseChoice::kHigh);  // its calibration's own
+  EXPECT_EQ(r.cameras[1].phase, PhaseSource::High);  // its calibration's own
   EXPECT_EQ(r.cameras[1].points, finitePixels(cam90.absolute));
   EXPECT_EQ(r.cameras[1].phase_valid_fraction, cam90.valid_fraction);
   EXPECT_EQ(r.cameras[1].file, "clouds/cam90.ply");

@@ -54,7 +54,7 @@ class CameraSetsTest : public testing::TempDirTest {
     CaptureBundleWriter writer(bundle(), info);
     int seed = 0;
     for (const std::string& camera : info.cameras)
-      for (const FringeSetId id : kFringeSets)
+      for (const FringeSet id : kFringeSets)
         for (int k = 0; k < static_cast<int>(info.setOf(camera, id).stage_deg.size()); ++k)
           writer.writeFrame(camera, id, k, frameOf(seed++));
     writer.commit();
@@ -83,22 +83,21 @@ TEST_F(CameraSetsTest, EachCameraReadsItsOwnSets) {
   EXPECT_FALSE(reader.info().hasOwnSets("main"));
   EXPECT_TRUE(reader.info().hasOwnSets("cam90"));
   for (const std::string& camera : info.cameras) {
-    for (const FringeSetId id : kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       EXPECT_EQ(reader.info().setOf(camera, id).stage_deg, info.setOf(camera, id).stage_deg)
           << camera << " " << toString(id);  // exact: JSON keeps doubles
       EXPECT_EQ(reader.info().setOf(camera, id).period_deg, info.setOf(camera, id).period_deg);
     }
   }
-  EXPECT_EQ(reader.info().setOf("cam90", FringeSetId::High).stage_deg.front(), 56.0);
-  EXPECT_EQ(reader.frameCount(FringeSetId::High), 4);
-  EXPECT_EQ(reader.frameCount("cam180", FringeSetId::High), 5);
-  EXPECT_EQ(reader.framePath("cam180", FringeSetId::Low, 4),
-            bundle() / "cam180" / "low" / "04.png");
-  EXPECT_THROW((void)reader.framePath("main", FringeSetId::Low, 4), std::out_of_range);
-  EXPECT_EQ(cv::norm(reader.readFrame("cam180", FringeSetId::Low, 4), frameOf(8 + 8 + 5 + 4),
-                     cv::NORM_INF),
-            0);
-  EXPECT_THROW((void)reader.frameCount("side", FringeSetId::High), InputError);
+  EXPECT_EQ(reader.info().setOf("cam90", FringeSet::High).stage_deg.front(), 56.0);
+  EXPECT_EQ(reader.frameCount(FringeSet::High), 4);
+  EXPECT_EQ(reader.frameCount("cam180", FringeSet::High), 5);
+  EXPECT_EQ(reader.framePath("cam180", FringeSet::Low, 4), bundle() / "cam180" / "low" / "04.png");
+  EXPECT_THROW((void)reader.framePath("main", FringeSet::Low, 4), std::out_of_range);
+  EXPECT_EQ(
+      cv::norm(reader.readFrame("cam180", FringeSet::Low, 4), frameOf(8 + 8 + 5 + 4), cv::NORM_INF),
+      0);
+  EXPECT_THROW((void)reader.frameCount("side", FringeSet::High), InputError);
 }
 
 TEST_F(CameraSetsTest, ExtrasInsideACamerasSetsSurviveARewrite) {
@@ -116,15 +115,15 @@ TEST_F(CameraSetsTest, ExtrasInsideACamerasSetsSurviveARewrite) {
   {
     CaptureBundleWriter writer(copy, reader.info());
     for (const std::string& camera : reader.info().cameras)
-      for (const FringeSetId id : kFringeSets)
+      for (const FringeSet id : kFringeSets)
         for (int k = 0; k < reader.frameCount(camera, id); ++k)
           writer.writeFrame(camera, id, k, reader.readFrame(camera, id, k));
     writer.commit();
   }
   const CaptureBundleReader again(copy);
   EXPECT_EQ(again.info().extra, reader.info().extra);
-  EXPECT_EQ(again.info().setOf("cam90", FringeSetId::Low).stage_deg,
-            reader.info().setOf("cam90", FringeSetId::Low).stage_deg);
+  EXPECT_EQ(again.info().setOf("cam90", FringeSet::Low).stage_deg,
+            reader.info().setOf("cam90", FringeSet::Low).stage_deg);
 }
 
 TEST_F(CameraSetsTest, ABundleWithoutTheExtensionReadsAsBefore) {
@@ -135,8 +134,8 @@ TEST_F(CameraSetsTest, ABundleWithoutTheExtensionReadsAsBefore) {
   EXPECT_FALSE(readJson().contains("camera_sets"));
   const CaptureBundleReader reader(bundle());
   EXPECT_TRUE(reader.info().camera_sets.empty());
-  EXPECT_EQ(&reader.info().setOf("aux", FringeSetId::High), &reader.info().high);
-  EXPECT_EQ(reader.frameCount("aux", FringeSetId::Low), reader.frameCount(FringeSetId::Low));
+  EXPECT_EQ(&reader.info().setOf("aux", FringeSet::High), &reader.info().high);
+  EXPECT_EQ(reader.frameCount("aux", FringeSet::Low), reader.frameCount(FringeSet::Low));
 }
 
 TEST_F(CameraSetsTest, ACamerasCountMustMatchItsFrames) {
@@ -235,8 +234,8 @@ TEST_F(CameraSetsTest, TheWriterRefusesCameraSetsOfUnknownCamerasOrBadSets) {
   EXPECT_FALSE(fs::exists(bundle()));
   // Frames beyond a camera's own count are refused.
   CaptureBundleWriter writer(bundle(), ringInfo());
-  EXPECT_NO_THROW(writer.writeFrame("cam180", FringeSetId::High, 4, frameOf(0)));
-  EXPECT_THROW(writer.writeFrame("main", FringeSetId::High, 4, frameOf(0)), std::invalid_argument);
+  EXPECT_NO_THROW(writer.writeFrame("cam180", FringeSet::High, 4, frameOf(0)));
+  EXPECT_THROW(writer.writeFrame("main", FringeSet::High, 4, frameOf(0)), std::invalid_argument);
 }
 
 }  // namespace

@@ -46,7 +46,7 @@ class CaptureBundleTest : public testing::TempDirTest {
     CaptureBundleWriter writer(dir, info);
     int seed = 0;
     for (const std::string& camera : info.cameras) {
-      for (const FringeSetId id : kFringeSets) {
+      for (const FringeSet id : kFringeSets) {
         for (int k = 0; k < static_cast<int>(info.set(id).stage_deg.size()); ++k) {
           cv::Mat frame = randomFrame(size, type, seed++);
           writer.writeFrame(camera, id, k, frame);
@@ -90,8 +90,8 @@ TEST(FrameFileName, TwoDigitsBelowAHundredFramesMoreAbove) {
 }
 
 TEST(FringeSetIdText, NamesTheSets) {
-  EXPECT_EQ(toString(FringeSetId::High), "high");
-  EXPECT_EQ(toString(FringeSetId::Low), "low");
+  EXPECT_EQ(toString(FringeSet::High), "high");
+  EXPECT_EQ(toString(FringeSet::Low), "low");
 }
 
 TEST_F(CaptureBundleTest, RoundTripKeepsInfoAndPixels8Bit) {
@@ -106,12 +106,12 @@ TEST_F(CaptureBundleTest, RoundTripKeepsInfoAndPixels8Bit) {
   EXPECT_TRUE(reader.info().extra.empty()) << reader.info().extra.dump();
   EXPECT_TRUE(reader.hasCamera("aux"));
   EXPECT_FALSE(reader.hasCamera("side"));
-  EXPECT_EQ(reader.frameCount(FringeSetId::High), 5);
-  EXPECT_EQ(reader.frameCount(FringeSetId::Low), 4);
+  EXPECT_EQ(reader.frameCount(FringeSet::High), 5);
+  EXPECT_EQ(reader.frameCount(FringeSet::Low), 4);
   EXPECT_EQ(reader.frameSize("main"), cv::Size(8, 6));
-  EXPECT_EQ(reader.framePath("aux", FringeSetId::Low, 3), bundle() / "aux" / "low" / "03.png");
+  EXPECT_EQ(reader.framePath("aux", FringeSet::Low, 3), bundle() / "aux" / "low" / "03.png");
   for (const auto& [camera, sets] : frames) {
-    for (const FringeSetId id : kFringeSets) {
+    for (const FringeSet id : kFringeSets) {
       const auto& written = sets[static_cast<std::size_t>(id)];
       for (int k = 0; k < static_cast<int>(written.size()); ++k) {
         const cv::Mat frame = reader.readFrame(camera, id, k);
@@ -131,7 +131,7 @@ TEST_F(CaptureBundleTest, RoundTrip16Bit) {
   const CaptureInfo info = makeInfo({"main"}, 3, 3);
   const auto frames = writeBundle(bundle(), info, CV_16UC1, cv::Size(13, 7));
   const CaptureBundleReader reader(bundle());
-  const cv::Mat frame = reader.readFrame("main", FringeSetId::Low, 2);
+  const cv::Mat frame = reader.readFrame("main", FringeSet::Low, 2);
   EXPECT_EQ(frame.type(), CV_16UC1);
   EXPECT_TRUE(samePixels(frame, frames.at("main")[1][2]));
   double max_value = 0;
@@ -147,10 +147,10 @@ TEST_F(CaptureBundleTest, MoreThanAHundredFramesUseThreeDigits) {
   EXPECT_FALSE(fs::exists(bundle() / "main" / "high" / "00.png"));
   EXPECT_TRUE(fs::exists(bundle() / "main" / "low" / "02.png"));
   const CaptureBundleReader reader(bundle());
-  EXPECT_EQ(reader.frameCount(FringeSetId::High), 101);
-  EXPECT_EQ(reader.framePath("main", FringeSetId::High, 7), bundle() / "main" / "high" / "007.png");
+  EXPECT_EQ(reader.frameCount(FringeSet::High), 101);
+  EXPECT_EQ(reader.framePath("main", FringeSet::High, 7), bundle() / "main" / "high" / "007.png");
   EXPECT_TRUE(
-      samePixels(reader.readFrame("main", FringeSetId::High, 100), frames.at("main")[0][100]));
+      samePixels(reader.readFrame("main", FringeSet::High, 100), frames.at("main")[0][100]));
 }
 
 TEST_F(CaptureBundleTest, ExtraJsonFieldsAreKeptThroughReadAndWrite) {
@@ -174,7 +174,7 @@ TEST_F(CaptureBundleTest, ExtraJsonFieldsAreKeptThroughReadAndWrite) {
   // Writing the info again keeps the extras next to the known fields.
   const fs::path copy = dir_ / "copy";
   CaptureBundleWriter writer(copy, reader.info());
-  for (const FringeSetId id : kFringeSets) {
+  for (const FringeSet id : kFringeSets) {
     for (int k = 0; k < reader.frameCount(id); ++k) {
       writer.writeFrame("main", id, k, reader.readFrame("main", id, k));
     }
@@ -510,9 +510,9 @@ TEST_F(CaptureBundleTest, TruncatedFrame) {
   const std::string bytes = readText(frame);
   writeText(frame, bytes.substr(0, bytes.size() / 2));
   const CaptureBundleReader reader(bundle());  // the header is intact
-  EXPECT_TRUE(throwsInputError([&] { reader.readFrame("main", FringeSetId::High, 1); }, frame,
+  EXPECT_TRUE(throwsInputError([&] { reader.readFrame("main", FringeSet::High, 1); }, frame,
                                {"truncated PNG"}));
-  EXPECT_NO_THROW(reader.readFrame("main", FringeSetId::High, 0));
+  EXPECT_NO_THROW(reader.readFrame("main", FringeSet::High, 0));
 }
 
 TEST_F(CaptureBundleTest, FrameCutInsideTheHeader) {
@@ -527,7 +527,7 @@ TEST_F(CaptureBundleTest, CorruptImageData) {
   const fs::path frame = bundle() / "main" / "low" / "02.png";
   writeText(frame, craftedPng(8, 6, 8, 0));  // valid header, IDAT of garbage
   const CaptureBundleReader reader(bundle());
-  EXPECT_TRUE(throwsInputError([&] { reader.readFrame("main", FringeSetId::Low, 2); }, frame,
+  EXPECT_TRUE(throwsInputError([&] { reader.readFrame("main", FringeSet::Low, 2); }, frame,
                                {"corrupt PNG", "cannot be decoded"}));
 }
 
@@ -577,9 +577,9 @@ TEST_F(CaptureBundleTest, FrameLimitsAreConfigurable) {
 TEST_F(CaptureBundleTest, UnknownCameraNamesCaptureJson) {
   writeDefaultBundle();
   const CaptureBundleReader reader(bundle());
-  EXPECT_TRUE(throwsInputError([&] { reader.readFrame("aux", FringeSetId::High, 0); },
-                               captureJson(), {"no camera \"aux\"", "cameras: main"}));
-  EXPECT_THROW(reader.framePath("main", FringeSetId::High, 4), std::out_of_range);
+  EXPECT_TRUE(throwsInputError([&] { reader.readFrame("aux", FringeSet::High, 0); }, captureJson(),
+                               {"no camera \"aux\"", "cameras: main"}));
+  EXPECT_THROW(reader.framePath("main", FringeSet::High, 4), std::out_of_range);
 }
 
 TEST_F(CaptureBundleTest, OtherFilesInTheBundleAreIgnored) {
@@ -588,24 +588,24 @@ TEST_F(CaptureBundleTest, OtherFilesInTheBundleAreIgnored) {
   writeText(bundle() / "main" / "high" / "preview.png", "not a frame");
   writeText(bundle() / "thumbnail.png", "x");
   const CaptureBundleReader reader(bundle());
-  EXPECT_EQ(reader.frameCount(FringeSetId::High), 4);
+  EXPECT_EQ(reader.frameCount(FringeSet::High), 4);
 }
 
 // ----------------------------------------------------------------------------- writer
 
 TEST_F(CaptureBundleTest, WriterRejectsFramesOfOtherTypes) {
   CaptureBundleWriter writer(bundle(), makeInfo({"main"}, 3, 3));
-  EXPECT_THROW(writer.writeFrame("main", FringeSetId::High, 0, cv::Mat(4, 4, CV_8UC3)),
+  EXPECT_THROW(writer.writeFrame("main", FringeSet::High, 0, cv::Mat(4, 4, CV_8UC3)),
                std::invalid_argument);
-  EXPECT_THROW(writer.writeFrame("main", FringeSetId::High, 0, cv::Mat(4, 4, CV_32FC1)),
+  EXPECT_THROW(writer.writeFrame("main", FringeSet::High, 0, cv::Mat(4, 4, CV_32FC1)),
                std::invalid_argument);
-  EXPECT_THROW(writer.writeFrame("main", FringeSetId::High, 0, cv::Mat()), std::invalid_argument);
-  EXPECT_THROW(writer.writeFrame("aux", FringeSetId::High, 0, cv::Mat(4, 4, CV_8UC1)),
+  EXPECT_THROW(writer.writeFrame("main", FringeSet::High, 0, cv::Mat()), std::invalid_argument);
+  EXPECT_THROW(writer.writeFrame("aux", FringeSet::High, 0, cv::Mat(4, 4, CV_8UC1)),
                std::invalid_argument);
-  EXPECT_THROW(writer.writeFrame("main", FringeSetId::High, 3, cv::Mat(4, 4, CV_8UC1)),
+  EXPECT_THROW(writer.writeFrame("main", FringeSet::High, 3, cv::Mat(4, 4, CV_8UC1)),
                std::invalid_argument);
-  writer.writeFrame("main", FringeSetId::High, 0, cv::Mat(4, 4, CV_8UC1, cv::Scalar(0)));
-  EXPECT_THROW(writer.writeFrame("main", FringeSetId::High, 1, cv::Mat(4, 5, CV_8UC1)),
+  writer.writeFrame("main", FringeSet::High, 0, cv::Mat(4, 4, CV_8UC1, cv::Scalar(0)));
+  EXPECT_THROW(writer.writeFrame("main", FringeSet::High, 1, cv::Mat(4, 5, CV_8UC1)),
                std::invalid_argument);
   EXPECT_FALSE(fs::exists(bundle() / "main" / "high" / "01.png"));
 }
@@ -627,7 +627,7 @@ TEST_F(CaptureBundleTest, WriterRejectsInvalidInfo) {
 TEST_F(CaptureBundleTest, CommitNeedsEveryFrame) {
   CaptureBundleWriter writer(bundle(), makeInfo({"main"}, 3, 3));
   for (int k = 0; k < 3; ++k) {
-    writer.writeFrame("main", FringeSetId::High, k, cv::Mat(4, 4, CV_8UC1, cv::Scalar(k)));
+    writer.writeFrame("main", FringeSet::High, k, cv::Mat(4, 4, CV_8UC1, cv::Scalar(k)));
   }
   EXPECT_THROW(writer.commit(), std::logic_error);
   EXPECT_FALSE(fs::exists(captureJson()));
@@ -644,7 +644,7 @@ TEST_F(CaptureBundleTest, RewritingABundleWithFewerFramesLeavesAWholeBundle) {
   writeBundle(bundle(), makeInfo({"main"}, 5, 3));
   EXPECT_FALSE(fs::exists(old_frame));
   const CaptureBundleReader reader(bundle());
-  EXPECT_EQ(reader.frameCount(FringeSetId::High), 5);
+  EXPECT_EQ(reader.frameCount(FringeSet::High), 5);
 }
 
 }  // namespace

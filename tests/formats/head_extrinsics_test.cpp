@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "formats/head_extrinsics.hpp"
 
+#include "common/vocabulary.hpp"
+
 #include <cmath>
 
 #include "tests/formats/test_support.hpp"
@@ -92,9 +94,14 @@ TEST_F(HeadExtrinsicsTest, CameraNamesAreChecked) {
   EXPECT_TRUE(readFails(
       R"({"format": "cylscan-head-1", "cameras": {"main": {"R": [[1,0,0],[0,1,0],[0,0,1]], "T": [0,0,0]}, "../x": {"R": [[1,0,0],[0,1,0],[0,0,1]], "T": [0,0,0]}}})",
       {"cameras.../x", "not a camera name"}));
-  EXPECT_TRUE(isValidHeadCameraName("cam_90-b"));
-  EXPECT_FALSE(isValidHeadCameraName(""));
-  EXPECT_FALSE(isValidHeadCameraName("a b"));
+  EXPECT_TRUE(isCameraName("cam_90-b"));
+  EXPECT_FALSE(isCameraName(""));
+  EXPECT_FALSE(isCameraName("a b"));
+  // One rule with the board profile's: lower case, at most 32, no leading _ or -.
+  EXPECT_FALSE(isCameraName("Main"));
+  EXPECT_FALSE(isCameraName("_main"));
+  EXPECT_TRUE(isCameraName(std::string(32, 'c')));
+  EXPECT_FALSE(isCameraName(std::string(33, 'c')));
 }
 
 TEST_F(HeadExtrinsicsTest, TheAxisDirectionIsAUnitVector) {

@@ -41,7 +41,7 @@ TEST(RouterHead, BadCameraCloudNamesAreNotFound) {
   EXPECT_EQ(route("GET", "/api/v1/scans/20261201-160102-3f9a/other/main.ply").status, 404);
 }
 
-// The board's camera-name rule (drivers::isCameraName), the same for every
+// The board's camera-name rule (isCameraName), the same for every
 // route that names a camera: what a board may call a camera can be reached.
 TEST(RouterHead, EveryNameABoardMayGiveACameraIsRouted) {
   for (const char* camera :

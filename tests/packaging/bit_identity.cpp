@@ -36,6 +36,8 @@
 namespace {
 
 using namespace cylscan::algo;
+using cylscan::FringeSet;
+using cylscan::PhaseSource;
 
 constexpr int kWidth = 320;
 constexpr int kHeight = 240;
@@ -172,7 +174,7 @@ QuasiCalibration calibration(const cv::Mat& fused) {
     }
   }
   QuasiCalibrationInfo info;
-  info.phase_source = PhaseSource::kFused;
+  info.phase_source = PhaseSource::Fused;
   info.pose_count = 5;
   info.min_poses = 4;
   return QuasiCalibration(size, std::move(valid), std::move(pixels), info);

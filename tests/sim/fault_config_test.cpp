@@ -11,11 +11,12 @@
 
 #include "drivers/sim/head_config.hpp"
 #include "drivers/sim/stage.hpp"
-#include "drivers/sim/toml_reader.hpp"
+#include "drivers/toml_reader.hpp"
 
 namespace cylscan::sim {
 namespace {
 
+using drivers::ConfigError;
 using std::chrono::seconds;
 
 HeadConfig parse(const std::string& text) {

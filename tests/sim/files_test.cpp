@@ -8,14 +8,15 @@
 
 #include "drivers/sim/head_config.hpp"
 #include "drivers/sim/scene.hpp"
-#include "drivers/sim/toml_reader.hpp"
 #include "drivers/sim/triangle_mesh.hpp"
+#include "drivers/toml_reader.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace cylscan::sim {
 namespace {
 
 namespace fs = std::filesystem;
+using drivers::ConfigError;
 using test_support::TempDir;
 const fs::path kBoard = fs::path(CYLSCAN_SOURCE_DIR) / "board" / "sim";
 

@@ -103,7 +103,7 @@ TEST(RingHead, TheTrueExtrinsicsAreTheHeadFilesPoses) {
 
 TEST(RingHead, ProfileAzimuthsContainTheWorkingVolumes) {
   const drivers::BoardProfile profile = drivers::loadBoardProfile(kBoard);
-  EXPECT_EQ(profile.scan.plan, drivers::PlanKind::Ring);
+  EXPECT_EQ(profile.scanTable()["plan"].value_or(std::string()), "ring");
   ASSERT_TRUE(profile.sim);
   ASSERT_EQ(profile.cameras.size(), 4u);
   const CylindricalProjector projector(profile.sim->head.projector);

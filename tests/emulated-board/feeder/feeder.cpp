@@ -510,7 +510,7 @@ int runAngles(const Args& a) {
   const double steps_per_deg = std::stod(a.get("steps-per-deg"));
   const double tolerance = std::stod(a.get("tolerance-steps"));
   std::vector<double> executed;
-  for (formats::FringeSetId id : formats::kFringeSets)
+  for (FringeSet id : kFringeSets)
     for (double d : bundle.info().set(id).stage_deg)
       executed.push_back(d);
   if (executed.size() != triggers.size()) {

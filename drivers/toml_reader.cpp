@@ -1,12 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "drivers/sim/toml_reader.hpp"
+#include "drivers/toml_reader.hpp"
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
-namespace cylscan::sim {
+namespace cylscan::drivers {
 
 namespace {
 
@@ -30,17 +30,26 @@ ConfigError::ConfigError(const std::string& file, int line, const std::string& k
       line_(line),
       key_(key) {}
 
-toml::table parseTomlFile(const std::string& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw ConfigError(file, 0, "", "cannot open the file");
-  std::ostringstream text;
-  text << in.rdbuf();
+toml::table parseToml(std::string_view text, const std::string& file) {
   try {
-    return toml::parse(text.str(), file);
+    return toml::parse(text, file);
   } catch (const toml::parse_error& e) {
     throw ConfigError(file, static_cast<int>(e.source().begin.line), "",
                       std::string(e.description()));
   }
+}
+
+std::string readConfigText(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw ConfigError(file, 0, "", "cannot open the file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw ConfigError(file, 0, "", "cannot read the file");
+  return std::move(text).str();
+}
+
+toml::table parseTomlFile(const std::string& file) {
+  return parseToml(readConfigText(file), file);
 }
 
 TableReader::TableReader(const toml::table& table, std::string file, std::string path)
@@ -103,6 +112,17 @@ int TableReader::integer(std::string_view key, int fallback) {
   return static_cast<int>(*i);
 }
 
+std::int64_t TableReader::integerIn(std::string_view key, std::int64_t fallback, std::int64_t lo,
+                                    std::int64_t hi) {
+  const toml::node* n = node(key);
+  if (n == nullptr) return fallback;
+  auto i = n->value_exact<std::int64_t>();
+  if (!i) fail(key, "must be an integer");
+  require(*i >= lo && *i <= hi, key,
+          std::to_string(*i) + " is not in " + std::to_string(lo) + ".." + std::to_string(hi));
+  return *i;
+}
+
 bool TableReader::boolean(std::string_view key, bool fallback) {
   const toml::node* n = node(key);
   if (n == nullptr) return fallback;
@@ -117,6 +137,14 @@ std::string TableReader::string(std::string_view key, const std::string& fallbac
   auto s = n->value_exact<std::string>();
   if (!s) fail(key, "must be a string");
   return *s;
+}
+
+std::filesystem::path TableReader::path(std::string_view key,
+                                        const std::filesystem::path& fallback) {
+  if (!has(key)) return fallback;
+  const std::filesystem::path p = string(key, "");
+  require(!p.empty(), key, "must not be empty");
+  return p.is_absolute() ? p : std::filesystem::path(file_).parent_path() / p;
 }
 
 namespace {
@@ -193,4 +221,4 @@ void TableReader::finish() const {
   }
 }
 
-}  // namespace cylscan::sim
+}  // namespace cylscan::drivers

@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
-// Strict reading of TOML tables for the virtual head's files (head.toml,
-// scenes): every key must be known, every value checked, and every error names
-// the file, the line and the key.
+// Strict reading of TOML tables, for every TOML file cylscan reads (board.toml,
+// the virtual head's head.toml and scenes, cylscan.toml): every key must be
+// known, every value checked, and every error names the file, the line and the key.
 #pragma once
 
 #include <array>
+#include <cstdint>
+#include <filesystem>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -12,10 +14,11 @@
 
 #include <toml++/toml.h>
 
-namespace cylscan::sim {
+namespace cylscan::drivers {
 
-// Bad content in a virtual-head file. A std::invalid_argument, so the command
-// line reports it as bad input (exit status 2).
+// Bad content in a configuration file: "FILE:LINE: KEY: FAULT" (line 0: not
+// known, e.g. a command-line flag, whose name is then the file). A
+// std::invalid_argument, so the command line reports it as bad input (exit 2).
 class ConfigError : public std::invalid_argument {
  public:
   ConfigError(const std::string& file, int line, const std::string& key, const std::string& fault);
@@ -29,7 +32,12 @@ class ConfigError : public std::invalid_argument {
   std::string key_;
 };
 
-// Parses a whole TOML file; a syntax error becomes a ConfigError with its line.
+// Parses TOML text; a syntax error becomes a ConfigError with its line. `file`
+// names the text in messages.
+toml::table parseToml(std::string_view text, const std::string& file);
+// The whole text of a file; ConfigError (line 0) when it cannot be read.
+std::string readConfigText(const std::string& file);
+// readConfigText, then parseToml.
 toml::table parseTomlFile(const std::string& file);
 
 // A view of one table that tracks which keys were read. finish() rejects the rest.
@@ -42,8 +50,13 @@ class TableReader {
   double number(std::string_view key, double fallback);
   double requiredNumber(std::string_view key);
   int integer(std::string_view key, int fallback);
+  // An integer in [lo, hi]: "V is not in LO..HI" otherwise.
+  std::int64_t integerIn(std::string_view key, std::int64_t fallback, std::int64_t lo,
+                         std::int64_t hi);
   bool boolean(std::string_view key, bool fallback);
   std::string string(std::string_view key, const std::string& fallback);
+  // A non-empty string naming a path; a relative one is relative to the file's folder.
+  std::filesystem::path path(std::string_view key, const std::filesystem::path& fallback);
   std::array<double, 3> vec3(std::string_view key, const std::array<double, 3>& fallback);
   std::array<double, 2> vec2(std::string_view key, const std::array<double, 2>& fallback);
   const toml::table* table(std::string_view key);  // nullptr when absent
@@ -71,4 +84,4 @@ class TableReader {
   std::set<std::string, std::less<>> used_;
 };
 
-}  // namespace cylscan::sim
+}  // namespace cylscan::drivers
