@@ -5,8 +5,6 @@
 #include <utility>
 
 #include "drivers/clock_monotonic.hpp"
-#include "drivers/sim/scene.hpp"
-#include "drivers/sim/virtual_head.hpp"
 #ifdef CYLSCAN_HAVE_GPIOD
 #include "drivers/gpio_gpiod.hpp"
 #endif
@@ -79,23 +77,6 @@ Board Board::openWith(BoardProfile profile, const std::optional<std::filesystem:
   for (const CameraProfile& c : b.profile_.cameras)
     b.camera(c.name).configure(c.config);
   return b;
-}
-
-void Board::openSim(const std::optional<std::filesystem::path>& scene) {
-  const SimProfile& s = *profile_.sim;
-  sim::Scene world;
-  world.name = "empty";
-  if (scene) {
-    world = sim::loadScene(*scene);
-  } else if (!s.scene.empty()) {
-    world = sim::loadScene(s.scene);
-  }
-  head_ = std::make_unique<sim::VirtualHead>(s.head, std::move(world), s.seed);
-  gpio_ = &head_->gpio();
-  clock_ = &head_->clock();
-  for (const CameraProfile& c : profile_.cameras) {
-    cameras_.emplace_back(c.name, &head_->camera(c.device));
-  }
 }
 
 void Board::openHardware() {

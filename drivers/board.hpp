@@ -56,16 +56,23 @@ class Board {
   sim::VirtualHead* virtualHead() { return head_.get(); }
 
  private:
+  // Defined beside openSim: a build without the virtual head has no
+  // VirtualHead destructor for board.cpp to call.
+  struct HeadDeleter {
+    void operator()(sim::VirtualHead* head) const;
+  };
+
   Board() = default;
   static Board openWith(BoardProfile profile, const std::optional<std::filesystem::path>& scene);
+  // drivers/board_sim.cpp; without the virtual head, drivers/board_sim_absent.cpp.
   void openSim(const std::optional<std::filesystem::path>& scene);
   void openHardware();
 
   BoardProfile profile_;
-  std::unique_ptr<sim::VirtualHead> head_;            // sim boards
-  std::unique_ptr<GpioBackend> own_gpio_;             // hardware boards
-  std::unique_ptr<Clock> own_clock_;                  // hardware boards
-  std::vector<std::unique_ptr<Camera>> own_cameras_;  // hardware boards
+  std::unique_ptr<sim::VirtualHead, HeadDeleter> head_;  // sim boards
+  std::unique_ptr<GpioBackend> own_gpio_;                // hardware boards
+  std::unique_ptr<Clock> own_clock_;                     // hardware boards
+  std::vector<std::unique_ptr<Camera>> own_cameras_;     // hardware boards
   GpioBackend* gpio_ = nullptr;
   Clock* clock_ = nullptr;
   std::vector<std::pair<std::string, Camera*>> cameras_;  // by profile name

@@ -125,6 +125,8 @@ CameraProfile readCamera(TableReader r, const GpioProfile& gpio) {
             "'" + c.name + "' is not a camera name (" + std::string(kCameraNameRule) + ")");
   const std::string backend = r.string("backend", "");
   if (backend == "sim") {
+    r.require(virtualHeadBuilt(), "backend",
+              "\"sim\" is a camera of the virtual head, and " + std::string(kNoVirtualHead));
     c.backend = CameraBackendKind::Sim;
   } else if (backend == "v4l2") {
     c.backend = CameraBackendKind::V4l2;
@@ -304,6 +306,8 @@ BoardProfile parseBoardProfile(toml::table parsed, const fs::path& file) {
   (void)root.table("scan");  // the firmware's (scanTable)
 
   if (const toml::table* t = root.table("sim")) {
+    root.require(virtualHeadBuilt(), "sim",
+                 "describes a virtual head, and " + std::string(kNoVirtualHead));
     TableReader r(*t, f, "sim");
     SimProfile s;
     const toml::node* head = t->get("head");

@@ -85,6 +85,13 @@ std::string_view toString(CameraBackendKind backend);
 std::string_view toString(TriggerMode trigger);
 std::string_view toString(FrameStream stream);
 
+// Whether this build has the virtual head (configured with CYLSCAN_WITH_SIM,
+// the default). Without it, a profile whose cameras are "sim" or that has a
+// [sim] table is refused with kNoVirtualHead, as is Board::open of such a profile.
+bool virtualHeadBuilt();
+inline constexpr std::string_view kNoVirtualHead =
+    "this build has no virtual head (CYLSCAN_WITH_SIM=OFF)";
+
 // Reads `dir`/board.toml (or the file itself when given one). Every fault
 // throws ConfigError (drivers/toml_reader.hpp, a std::invalid_argument) naming the file, the line
 // and the key; unknown keys are faults. Files named in it are relative to its folder.

@@ -10,10 +10,37 @@
 include(GNUInstallDirs)
 
 # Board profiles: /usr/share/cylscan/board/<name>/ (board.toml, README, overlays, sim's head and scenes).
-install(DIRECTORY ${PROJECT_SOURCE_DIR}/board/ DESTINATION ${CMAKE_INSTALL_DATADIR}/cylscan/board)
+# A build without the virtual head (CYLSCAN_WITH_SIM) would refuse sim and sim360: not shipped.
+set(cylscan_board_filter)
+set(cylscan_deb_boards "virtual head, ")
+if(NOT CYLSCAN_WITH_SIM)
+  set(cylscan_board_filter REGEX "/board/sim(360)?$" EXCLUDE)
+  set(cylscan_deb_boards "")
+endif()
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/board/ DESTINATION ${CMAKE_INSTALL_DATADIR}/cylscan/board
+        ${cylscan_board_filter})
 # The overlay, mirrored from rootfs-overlay/ onto /.
-install(DIRECTORY ${PROJECT_SOURCE_DIR}/rootfs-overlay/ DESTINATION /
-        PATTERN README.md EXCLUDE)
+if(CYLSCAN_WITH_SIM)
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/rootfs-overlay/ DESTINATION /
+          PATTERN README.md EXCLUDE)
+else()
+  # Without the virtual head the daemon's configuration names no board: the
+  # installer sets one, and cylscand refuses to start until then, saying so.
+  set(cylscan_conf_src ${PROJECT_SOURCE_DIR}/rootfs-overlay/etc/cylscan/cylscan.toml)
+  set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${cylscan_conf_src})
+  file(READ ${cylscan_conf_src} cylscan_conf)
+  string(REGEX REPLACE "\n(board = \"/usr/share/cylscan/board/)sim\"\n"
+         "\n# The virtual head is not in this build: set your board's.\n# \\1rpi5\"\n"
+         cylscan_conf_off "${cylscan_conf}")
+  if(cylscan_conf_off STREQUAL cylscan_conf)
+    message(FATAL_ERROR "${cylscan_conf_src}: no 'board = \".../board/sim\"' line to comment out")
+  endif()
+  file(CONFIGURE OUTPUT ${PROJECT_BINARY_DIR}/packaging/cylscan.toml CONTENT "${cylscan_conf_off}"
+       @ONLY)
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/rootfs-overlay/ DESTINATION /
+          PATTERN README.md EXCLUDE PATTERN cylscan.toml EXCLUDE)
+  install(FILES ${PROJECT_BINARY_DIR}/packaging/cylscan.toml DESTINATION /etc/cylscan)
+endif()
 install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
 # The licences of cylscan and of what it bundles and links, machine-readable
 # (DEP-5), where Debian keeps a package's: /usr/share/doc/cylscan/copyright.
@@ -27,7 +54,7 @@ set(CPACK_PACKAGE_DESCRIPTION
     "cylscan drives a 360-degree fringe-projection 3D scanning head (a cylindrical\n"
     "projector on a stepper rotation stage, triggered cameras) on embedded Linux:\n"
     "the cylscan command line, the cylscand daemon with its HTTP API and web page,\n"
-    "board profiles (virtual head, Raspberry Pi 4/5, generic arm64, emulated board)\n"
+    "board profiles (${cylscan_deb_boards}Raspberry Pi 4/5, generic arm64, emulated board)\n"
     "and a hardened systemd unit.")
 string(REPLACE ";" "" CPACK_PACKAGE_DESCRIPTION "${CPACK_PACKAGE_DESCRIPTION}")
 set(CYLSCAN_PACKAGE_MAINTAINER "cylscan maintainers <cylscan@localhost>"

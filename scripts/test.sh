@@ -6,11 +6,13 @@
 #      unit tests, the CLI, the daemon end to end, the browser test, the load
 #      test, the package installed into a throwaway root;
 #   2. the aarch64 cross build, its algo/formats tests under qemu-user and the
-#      fixed-point bit-identity digests against this amd64 build;
+#      fixed-point bit-identity digests against this amd64 build; it is built
+#      without the virtual head (CYLSCAN_WITH_SIM=OFF), the check that such a
+#      build still compiles;
 #   3. the emulated board (tests/emulated-board/run.sh): the arm64 package
 #      on qemu-system-aarch64 -M virt, scans through cylscand under systemd
 #      against the kernel's gpio-sim and vivid drivers; it builds in the
-#      cross stage's build directory;
+#      cross stage's build directory, with the virtual head;
 #   4. every libFuzzer target for 20 s over its seed corpus;
 #   5. cppcheck over the project's sources;
 #   6. clang-tidy over the project's sources (scripts/lint.sh clang-tidy);

@@ -64,6 +64,12 @@ void checkRequest(const ScanRequest& r) {
     throw std::invalid_argument("scan: --calib is for --cloud cloud.ply");
   if (!r.depth.empty() && r.cloud.empty())
     throw std::invalid_argument("scan: --depth comes with --cloud");
+  if (!drivers::virtualHeadBuilt()) {
+    const std::string why = std::string(drivers::kNoVirtualHead);
+    if (r.board.empty()) throw std::invalid_argument("scan: give --board DIR: " + why);
+    if (!r.scene.empty())
+      throw std::invalid_argument("scan: --scene is for the virtual head, and " + why);
+  }
 }
 
 firmware::ScanOptions optionsFor(const ScanRequest& request, const drivers::BoardProfile& profile) {

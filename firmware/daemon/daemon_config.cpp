@@ -9,6 +9,7 @@
 
 #include <toml++/toml.h>
 
+#include "drivers/board_profile.hpp"
 #include "drivers/toml_reader.hpp"
 #include "firmware/shipped_boards.hpp"
 
@@ -88,7 +89,8 @@ DaemonDefaults daemonDefaults(const fs::path& exe_dir) {
   DaemonDefaults d;
   const fs::path share = exe_dir / ".." / "share" / "cylscan";
   std::error_code ec;
-  d.board = firmware::shippedBoard(exe_dir, "sim");
+  // Without the virtual head there is no board to default to: resolveDaemonConfig asks for one.
+  if (drivers::virtualHeadBuilt()) d.board = firmware::shippedBoard(exe_dir, "sim");
   d.web_root = fs::is_directory(share / "web", ec) ? (share / "web").lexically_normal()
                                                    : fs::path(CYLSCAN_BUILD_WEB_DIR);
   // getenv is not thread-safe against setenv: called from main before any
@@ -184,6 +186,12 @@ DaemonConfig resolveDaemonConfig(const DaemonFlags& flags, const DaemonDefaults&
     return p;
   };
   if (flags.board) c.board = nonEmpty(*flags.board, "--board");
+  if (c.board.empty()) {
+    throw ConfigError("--board", 0, "",
+                      "no board profile configured, and " + std::string(drivers::kNoVirtualHead) +
+                          " to default to: give --board DIR or [daemon] board in " +
+                          kSystemConfigFile.string());
+  }
   if (flags.data_dir) c.data_dir = nonEmpty(*flags.data_dir, "--data");
   if (flags.web_root) c.web_root = nonEmpty(*flags.web_root, "--web-root");
   if (flags.token) c.token = *flags.token;

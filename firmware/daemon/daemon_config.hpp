@@ -68,6 +68,7 @@ struct DaemonDefaults {
 // For an executable in `exe_dir`: <exe_dir>/../share/cylscan/board/sim and
 // …/web when installed, else the source tree's board/sim and the build
 // tree's web/dist; data in $XDG_STATE_HOME/cylscan or ~/.local/state/cylscan.
+// A build without the virtual head has no default board (board empty).
 DaemonDefaults daemonDefaults(const std::filesystem::path& exe_dir);
 
 // Parses the text of a cylscan.toml over `base` (keys absent keep base's
@@ -87,7 +88,8 @@ struct DaemonFlags {
 inline const std::filesystem::path kSystemConfigFile = "/etc/cylscan/cylscan.toml";
 
 // The defaults, then the config file (--config, else `system_config` when it
-// exists), then the flags. ConfigError for any fault.
+// exists), then the flags. ConfigError for any fault, and when none of them
+// gives a board.
 DaemonConfig resolveDaemonConfig(const DaemonFlags& flags, const DaemonDefaults& defaults,
                                  const std::filesystem::path& system_config = kSystemConfigFile);
 

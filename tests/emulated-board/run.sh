@@ -99,8 +99,10 @@ wait_bg() {
 }
 
 # The arm64 package and the feeder. A build directory the cross stage made
-# (tests on, the page off) is used as it is: only the package's programs and
-# the feeder are built, and the package is made without building the rest.
+# (tests on, the page off) is used with the virtual head turned back on (the
+# cross stage builds without it): the feeder plays it, and the guest reads its
+# scenes from the package's board/sim. Only the package's programs and the
+# feeder are built, and the package is made without building the rest.
 pkgdir=${EMULATED_BUILD_DIR:-}
 if [ -z "$pkgdir" ]; then
   pkgdir=$root/build/emulated-package
@@ -112,8 +114,8 @@ build_package() {
   local launcher=()
   if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
   cmake --preset aarch64 -B "$pkgdir" "${launcher[@]}" -DCYLSCAN_SYSROOT="$sysroot" \
-    -DCYLSCAN_BUILD_TESTS=ON -DCYLSCAN_BUILD_WEB=OFF -DCMAKE_SKIP_INSTALL_ALL_DEPENDENCY=ON \
-    >/dev/null
+    -DCYLSCAN_BUILD_TESTS=ON -DCYLSCAN_BUILD_WEB=OFF -DCYLSCAN_WITH_SIM=ON \
+    -DCMAKE_SKIP_INSTALL_ALL_DEPENDENCY=ON >/dev/null
   cmake --build "$pkgdir" -j"$(nproc)" --target cylscan cylscand cylscan_emulated_feeder
   rm -f "$pkgdir"/package/cylscan_*_arm64.deb
   (cd "$pkgdir" && cpack -G DEB -B "$pkgdir/package" >/dev/null)
