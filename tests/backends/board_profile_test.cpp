@@ -178,9 +178,10 @@ TEST(BoardProfileFaults, UnknownKey) {
               file, 11, "gpio.stepp", "unknown key");
   expectFault(profileError(dir, hardwareGpio() + v4l2Main() + "focus = 3\n"), file, 16,
               "camera[0].focus", "unknown key");
-  expectFault(scanError(dir, hardwareGpio() + v4l2Main() +
-                                "[scan]\nhigh_start_deg = 0.0\nlow_start_deg = 180.0\nframes = 25\n"),
-              file, 19, "scan.frames", "unknown key");
+  expectFault(
+      scanError(dir, hardwareGpio() + v4l2Main() +
+                         "[scan]\nhigh_start_deg = 0.0\nlow_start_deg = 180.0\nframes = 25\n"),
+      file, 19, "scan.frames", "unknown key");
   expectFault(profileError(dir, hardwareGpio() + v4l2Main() + "[extras]\nx = 1\n"), file, 16,
               "extras", "unknown key");
   std::string text = hardwareGpio();
