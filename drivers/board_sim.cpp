@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The virtual head behind a sim board (CYLSCAN_WITH_SIM); a build without it
 // compiles drivers/board_sim_absent.cpp instead.
+#include <memory>
 #include <utility>
 
 #include "drivers/board.hpp"
@@ -14,7 +15,7 @@ bool virtualHeadBuilt() {
 }
 
 void Board::HeadDeleter::operator()(sim::VirtualHead* head) const {
-  delete head;
+  std::default_delete<sim::VirtualHead>{}(head);
 }
 
 void Board::openSim(const std::optional<std::filesystem::path>& scene) {
@@ -26,7 +27,7 @@ void Board::openSim(const std::optional<std::filesystem::path>& scene) {
   } else if (!s.scene.empty()) {
     world = sim::loadScene(s.scene);
   }
-  head_.reset(new sim::VirtualHead(s.head, std::move(world), s.seed));
+  head_.reset(std::make_unique<sim::VirtualHead>(s.head, std::move(world), s.seed).release());
   gpio_ = &head_->gpio();
   clock_ = &head_->clock();
   for (const CameraProfile& c : profile_.cameras) {

@@ -9,7 +9,6 @@
 
 namespace cylscan::sim {
 
-using drivers::ConfigError;
 using drivers::parseTomlFile;
 using drivers::TableReader;
 

@@ -15,8 +15,6 @@
 namespace cylscan::sim {
 
 using drivers::ConfigError;
-using drivers::parseTomlFile;
-using drivers::TableReader;
 
 namespace {
 
