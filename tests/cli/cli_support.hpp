@@ -2,9 +2,9 @@
 // Helpers for tests that run the `cylscan` program as a user would.
 #pragma once
 
+#include "tests/support/run_tool.hpp"
 #include "tests/support/temp_dir.hpp"
 
-#include <sys/wait.h>
 #include <cstdio>
 #include <filesystem>
 #include <random>
@@ -17,24 +17,8 @@
 
 namespace cylscan::test {
 
-struct ToolResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-inline ToolResult runTool(const std::string& args) {
-  const std::string command = std::string(CYLSCAN_TOOL) + " " + args + " 2>&1";
-  ToolResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  char buffer[4096];
-  std::size_t n = 0;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0)
-    result.output.append(buffer, n);
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
+using test_support::runTool;
+using test_support::ToolResult;
 
 using test_support::TempDir;
 

@@ -2,8 +2,6 @@
 // A build without the virtual head (CYLSCAN_WITH_SIM=OFF; built only then):
 // sim boards are refused by name, hardware boards still load, the daemon
 // asks for a board, and `cylscan simulate` and `scan` say why they cannot.
-#include <sys/wait.h>
-
 #include <cstdio>
 #include <filesystem>
 #include <stdexcept>
@@ -15,6 +13,7 @@
 #include "drivers/board_profile.hpp"
 #include "drivers/toml_reader.hpp"
 #include "firmware/daemon/daemon_config.hpp"
+#include "tests/support/run_tool.hpp"
 #include "tests/support/temp_dir.hpp"
 
 namespace cylscan {
@@ -27,24 +26,8 @@ fs::path boardDir(const std::string& name) {
   return fs::path(CYLSCAN_SOURCE_DIR) / "board" / name;
 }
 
-struct ToolResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-ToolResult runTool(const std::string& args) {
-  const std::string command = std::string(CYLSCAN_TOOL) + " " + args + " 2>&1";
-  ToolResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  char buffer[4096];
-  std::size_t n = 0;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0)
-    result.output.append(buffer, n);
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
+using test_support::runTool;
+using test_support::ToolResult;
 
 constexpr const char* kOff = "CYLSCAN_WITH_SIM=OFF";
 
