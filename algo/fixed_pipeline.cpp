@@ -46,7 +46,6 @@ class FixedPipeline final : public PhasePipeline {
     const PhaseOptions& o = setup.options;
     combine_.unwrap = setup.unwrapper.fixedParams();
     combine_.fusion = setup.fusion.fixedParams();
-    combine_.residual_bound = setup.unwrapper.fixedResidualBound(o.max_order_error_rad);
     combine_.min_modulation = static_cast<std::uint32_t>(
         std::min(65535.0, std::ceil(o.min_modulation * codes_per_count)));
     combine_.radians_per_unit = static_cast<float>(2 * std::numbers::pi / 65536.0);
@@ -97,9 +96,7 @@ class FixedPipeline final : public PhasePipeline {
 
   void finalize(PhaseMaps& maps) const override {
     preparePhaseMaps(maps, setup_.size);
-    CombineParams p = combine_;
-    p.second_is_high = *second_ == FringeSet::High;
-    p.second_code_per_sum = code_per_sum_[index(*second_)];
+    const CombineParams p = scanParams(maps.order_residual);
     const CombineOutputs out{
         maps.wrapped_high.ptr<float>(),    maps.wrapped_low.ptr<float>(),
         maps.modulation_high.ptr<float>(), maps.modulation_low.ptr<float>(),
@@ -114,9 +111,7 @@ class FixedPipeline final : public PhasePipeline {
 
   void finalizeCompact(CompactPhase& out) const override {
     prepareCompactPhase(out, setup_.size);
-    CombineParams p = combine_;
-    p.second_is_high = *second_ == FringeSet::High;
-    p.second_code_per_sum = code_per_sum_[index(*second_)];
+    const CombineParams p = scanParams(out.order_residual);
     const CompactOutputs compact{out.absolute.ptr<std::int32_t>(), out.fused.ptr<float>(),
                                  out.invalid.ptr<std::uint8_t>(), out.texture.ptr<std::uint16_t>()};
     const std::size_t valid =
@@ -137,6 +132,35 @@ class FixedPipeline final : public PhasePipeline {
   }
 
  private:
+  // The combine's parameters for this scan: the second set's, and the residual
+  // rule measured on a sample of its well-modulated, unsaturated pixels.
+  CombineParams scanParams(OrderResidual& report) const {
+    CombineParams p = combine_;
+    p.second_is_high = *second_ == FringeSet::High;
+    p.second_code_per_sum = code_per_sum_[index(*second_)];
+    std::vector<std::int32_t> residuals;
+    const std::size_t stride = residualSampleStride(setup_.size);
+    residuals.reserve(pixels_ / stride + 1);
+    for (std::size_t i = 0; i < pixels_; i += stride) {
+      const BinaryPolar second =
+          binaryPolar(static_cast<std::int32_t>(sum_s_[i]), static_cast<std::int32_t>(sum_c_[i]));
+      float code = second.magnitude * p.second_code_per_sum + 0.5f;  // as phaseKernel
+      code = code < 65535.0f ? code : 65535.0f;
+      const auto second_code = static_cast<std::uint32_t>(static_cast<std::int32_t>(code));
+      if (second_code < p.min_modulation || first_modulation_[i] < p.min_modulation ||
+          (sum_a_[i] & 1u) != 0)
+        continue;
+      const BinaryAngle h = p.second_is_high ? second.angle : first_phase_[i];
+      const BinaryAngle l = p.second_is_high ? first_phase_[i] : second.angle;
+      residuals.push_back(unwrapFixed(p.unwrap, h, l).residual);
+    }
+    const ResidualRule rule = residualRule(residuals, setup_);
+    p.unwrap.residual_centre = rule.centre;
+    p.residual_bound = rule.bound;
+    report = rule.report;
+    return p;
+  }
+
   const PipelineSetup& setup_;
   KernelIsa isa_;
   std::size_t pixels_;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "algo/phase_engine.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <optional>
@@ -8,6 +9,7 @@
 #include <string>
 #include <utility>
 
+#include "algo/order_residual.hpp"
 #include "algo/phase_pipeline.hpp"
 
 namespace cylscan::algo {
@@ -36,8 +38,8 @@ PhaseOptions resolve(PhaseOptions o) {
     msg << "PhaseOptions::min_modulation is " << o.min_modulation << "; it must be -1 or >= 0";
     throw std::invalid_argument(msg.str());
   }
-  if (o.max_order_error_rad == -1) o.max_order_error_rad = std::numbers::pi / 2;
-  if (!(o.max_order_error_rad > 0 && o.max_order_error_rad <= std::numbers::pi)) {
+  if (o.max_order_error_rad != -1 &&
+      !(o.max_order_error_rad > 0 && o.max_order_error_rad <= std::numbers::pi)) {
     std::ostringstream msg;
     msg << "PhaseOptions::max_order_error_rad is " << o.max_order_error_rad
         << "; it must be -1 or in (0, π]";
@@ -69,6 +71,33 @@ PipelineSetup::PipelineSetup(cv::Size size_, const PhaseOptions& options_,
       unwrapper(high_.period_deg, low_.period_deg),
       fusion(unwrapper.periodHighDeg(), unwrapper.periodLowDeg(), high.noiseGain(), low.noiseGain(),
              unwrapper.ratioHigh()) {}
+
+ResidualRule residualRule(std::span<std::int32_t> residuals, const PipelineSetup& setup) {
+  const TwoWavelengthUnwrapper& u = setup.unwrapper;
+  const int bits = 16 + u.fixedParams().shift;
+  const ResidualStatistics stats = measureResiduals(residuals, bits);
+  ResidualRule rule;
+  rule.centre = stats.centre;
+  if (setup.options.max_order_error_rad != -1) {
+    rule.bound = u.fixedResidualBound(setup.options.max_order_error_rad);
+  } else if (stats.samples >= kMinResidualSamples) {
+    rule.bound = residualBoundForSpread(stats.spread, bits);
+  } else {
+    rule.bound = u.fixedResidualBound(std::numbers::pi / 2);
+  }
+  rule.report.samples = stats.samples >= kMinResidualSamples ? stats.samples : 0;
+  rule.report.centre_rad = u.fixedResidualToRadians(rule.centre);
+  rule.report.spread_rad = u.fixedResidualToRadians(stats.spread);
+  rule.report.bound_rad = u.fixedResidualToRadians(rule.bound);
+  return rule;
+}
+
+std::size_t residualSampleStride(cv::Size size) {
+  const auto pixels = static_cast<std::size_t>(size.area());
+  std::size_t stride = std::max<std::size_t>(1, pixels / 8192) | 1u;
+  if (stride > 1 && static_cast<std::size_t>(size.width) % stride == 0) stride += 2;
+  return stride;
+}
 
 // Bits the kernels use for the flags.
 static_assert(kLowModulation == 1 && kSaturated == 2 && kOrderInconsistent == 4);

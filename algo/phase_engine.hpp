@@ -30,13 +30,25 @@ struct PhaseOptions {
   // Counts of B; -1 means 2 % of full scale (5.1 counts at 8 bits): below it the
   // phase noise σI·sqrt(2/N)/B of a dark or shadowed pixel is too large to trust.
   double min_modulation = -1;
-  // Bound on |R·φeq − φh − 2πK|; -1 means π/2. A residual of r means the nearest
-  // other order would need an error of 2π − |r|: at |r| <= π/2 that is >= 3 times
-  // larger than the observed one, beyond it the order is no longer clear.
+  // Bound on the order residual |R·φeq − φh − 2πK − centre|; -1 means from the
+  // scan's own spread (algo/order_residual.hpp: min(6σ, 2π − 4.5σ) within [π/2, 0.9π]),
+  // or π/2 when too few pixels are modulated to measure it. A residual of r
+  // means the nearest other order would need an error of 2π − |r|.
   double max_order_error_rad = -1;
   bool fixed_point = true;  // false: the double reference path
   // Which build of the fixed-point kernels runs (same bits either way).
   KernelIsa kernel_isa = KernelIsa::kAuto;
+};
+
+// The order residual of a scan (algo/order_residual.hpp), in radians: its
+// centre, the phase offset between the sets as R·φeq − φh sees it (−R times
+// the low set's offset), its robust spread about the centre, and the bound
+// the validity rule used.
+struct OrderResidual {
+  double centre_rad = 0;
+  double spread_rad = 0;
+  double bound_rad = 0;
+  std::size_t samples = 0;  // well-modulated pixels it was measured on; 0: not measured
 };
 
 enum InvalidReason : std::uint8_t {
@@ -56,6 +68,7 @@ struct PhaseMaps {
   cv::Mat fused;     // CV_32FC1, fused Φ (same scale as Φ_high), NaN where invalid
   cv::Mat invalid;   // CV_8UC1, InvalidReason bits, 0 = valid
   double valid_fraction = 0;
+  OrderResidual order_residual;
 };
 
 // The device's output of a scan: what the firmware keeps, 11 bytes per pixel written
@@ -77,6 +90,7 @@ struct CompactPhase {
   cv::Mat texture;
   double texture_codes_per_count = 0;
   double valid_fraction = 0;
+  OrderResidual order_residual;
 };
 
 class PhaseEngine {

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <span>
 
 #include "algo/dual_set_fusion.hpp"
 #include "algo/phase_engine.hpp"
@@ -45,6 +46,21 @@ class PhasePipeline {
   virtual void reset() = 0;
   virtual std::size_t workingStateBytes() const = 0;
 };
+
+// The residual rule of one scan: the centre the orders are taken about and the
+// bound on the residual, in FixedOrders::residual units, with its report.
+struct ResidualRule {
+  std::int32_t centre = 0;
+  std::int32_t bound = 0;
+  OrderResidual report;
+};
+// From the residuals (about 0, in FixedOrders::residual units) of the sampled
+// well-modulated pixels; `residuals` is reordered. The bound is the options'
+// when they give one.
+ResidualRule residualRule(std::span<std::int32_t> residuals, const PipelineSetup& setup);
+// Every stride-th pixel is sampled for the rule: about 8192 of them, a stride
+// that is odd and does not divide the width, so the samples cover the image.
+std::size_t residualSampleStride(cv::Size size);
 
 std::unique_ptr<PhasePipeline> makeFixedPipeline(const PipelineSetup& setup);
 std::unique_ptr<PhasePipeline> makeReferencePipeline(const PipelineSetup& setup);

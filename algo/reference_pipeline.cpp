@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "algo/order_residual.hpp"
 #include "algo/phase_pipeline.hpp"
 
 namespace cylscan::algo {
@@ -74,17 +75,20 @@ class ReferencePipeline final : public PhasePipeline {
     preparePhaseMaps(maps, setup_.size);
     const PhaseOptions& o = setup_.options;
     const float nan = std::numeric_limits<float>::quiet_NaN();
+    maps.order_residual = residualRule().report;
+    const double centre = maps.order_residual.centre_rad;
+    const double bound = maps.order_residual.bound_rad;
     std::size_t valid = 0;
     for (std::size_t p = 0; p < pixels_; ++p) {
       const double phi_h = wrappedPhase(sum_s_[0][p], sum_c_[0][p]);
       const double phi_l = wrappedPhase(sum_s_[1][p], sum_c_[1][p]);
       const double b_h = std::hypot(sum_c_[0][p], sum_s_[0][p]);
       const double b_l = std::hypot(sum_c_[1][p], sum_s_[1][p]);
-      const ReferenceOrders orders = setup_.unwrapper.unwrap(phi_h, phi_l);
+      const ReferenceOrders orders = setup_.unwrapper.unwrap(phi_h, phi_l, centre);
       std::uint8_t bad = 0;
       if (b_h < o.min_modulation || b_l < o.min_modulation) bad |= kLowModulation;
       if (saturated_[p] != 0) bad |= kSaturated;
-      if (std::abs(orders.residual_rad) > o.max_order_error_rad) bad |= kOrderInconsistent;
+      if (std::abs(orders.residual_rad) > bound) bad |= kOrderInconsistent;
       const double absolute_high = phi_h + kTwoPi * orders.high;
       const double absolute_low = phi_l + kTwoPi * orders.low;
       maps.wrapped_high.ptr<float>()[p] = wrappedFloat(phi_h);
@@ -117,6 +121,25 @@ class ReferencePipeline final : public PhasePipeline {
   }
 
  private:
+  // The scan's residual rule from the same sample of pixels as the fixed path,
+  // its residuals quantised to the fixed path's unit.
+  ResidualRule residualRule() const {
+    const PhaseOptions& o = setup_.options;
+    const int bits = 16 + setup_.unwrapper.fixedParams().shift;
+    const double units_per_rad = std::ldexp(1.0, bits) / kTwoPi;
+    std::vector<std::int32_t> residuals;
+    const std::size_t stride = residualSampleStride(setup_.size);
+    for (std::size_t p = 0; p < pixels_; p += stride) {
+      if (saturated_[p] != 0 || std::hypot(sum_c_[0][p], sum_s_[0][p]) < o.min_modulation ||
+          std::hypot(sum_c_[1][p], sum_s_[1][p]) < o.min_modulation)
+        continue;
+      const ReferenceOrders orders = setup_.unwrapper.unwrap(
+          wrappedPhase(sum_s_[0][p], sum_c_[0][p]), wrappedPhase(sum_s_[1][p], sum_c_[1][p]));
+      residuals.push_back(wrapResidual(std::llround(orders.residual_rad * units_per_rad), bits));
+    }
+    return algo::residualRule(residuals, setup_);
+  }
+
   const PipelineSetup& setup_;
   std::size_t pixels_;
   std::vector<double> sum_c_[2], sum_s_[2], sum_a_[2];

@@ -40,9 +40,9 @@ TwoWavelengthUnwrapper::TwoWavelengthUnwrapper(double period_high_deg, double pe
   ratio_is_integer_ = std::abs(ratio_high_ - nearest) <= 1e-9 * nearest;
   if (ratio_is_integer_) ratio_high_ = nearest;
 
-  // Largest shift with (R + 1.5)·2^(16+shift) < 2^31: keeps unwrapFixed in int32.
+  // Largest shift with (R + 2)·2^(16+shift) < 2^31: keeps unwrapFixed in int32.
   int shift = 0;
-  while (shift < 14 && (ratio_high_ + 1.5) * std::ldexp(1.0, 16 + shift + 1) < 2147483647.0) {
+  while (shift < 14 && (ratio_high_ + 2) * std::ldexp(1.0, 16 + shift + 1) < 2147483647.0) {
     ++shift;
   }
   params_.shift = shift;
@@ -52,10 +52,11 @@ TwoWavelengthUnwrapper::TwoWavelengthUnwrapper(double period_high_deg, double pe
   if (params_.orders_low < 1) params_.orders_low = 1;
 }
 
-ReferenceOrders TwoWavelengthUnwrapper::unwrap(double phi_high_rad, double phi_low_rad) const {
+ReferenceOrders TwoWavelengthUnwrapper::unwrap(double phi_high_rad, double phi_low_rad,
+                                               double centre_rad) const {
   double equivalent = phi_high_rad - phi_low_rad;
   if (equivalent < 0) equivalent += kTwoPi;
-  const double x = ratio_high_ * equivalent - phi_high_rad;
+  const double x = ratio_high_ * equivalent - phi_high_rad - centre_rad;
   const double raw = std::floor(x / kTwoPi + 0.5);
   ReferenceOrders out;
   out.residual_rad = x - kTwoPi * raw;

@@ -23,15 +23,19 @@ struct FixedUnwrapParams {
   int shift = 0;             // residual unit: 2^-(16 + shift) turn
   std::int32_t orders_high = 1;
   std::int32_t orders_low = 1;
+  // The centre the residual is taken about (algo/order_residual.hpp), in the
+  // residual's unit, in [−1/2, 1/2) turn: 0 for sets exactly in phase.
+  std::int32_t residual_centre = 0;
 };
 
 struct FixedOrders {
   std::int32_t high = 0;  // K of the high set, in [0, orders_high)
   std::int32_t low = 0;   // K of the low set, in [0, orders_low)
-  std::int32_t residual = 0;  // R·φeq − φh − 2πK in units of 2^-(16+shift) turn, [-1/2, 1/2) turn
+  // R·φeq − φh − 2πK − centre in units of 2^-(16+shift) turn, [-1/2, 1/2) turn
+  std::int32_t residual = 0;
 };
 
-// All integer, no branches (selects), no overflow: R·2^(16+shift)·(1 + 1.5/R) < 2^31.
+// All integer, no branches (selects), no overflow: (R + 2)·2^(16+shift) < 2^31.
 inline FixedOrders unwrapFixed(const FixedUnwrapParams& p, BinaryAngle phi_high,
                                BinaryAngle phi_low) {
   const int bits = 16 + p.shift;
@@ -39,7 +43,9 @@ inline FixedOrders unwrapFixed(const FixedUnwrapParams& p, BinaryAngle phi_high,
   const std::int32_t half = unit >> 1;
   const auto h = static_cast<std::int32_t>(phi_high);
   const auto equivalent = static_cast<std::int32_t>(static_cast<BinaryAngle>(phi_high - phi_low));
-  const std::int32_t x = equivalent * p.ratio_q - h * (std::int32_t{1} << p.shift);  // > -unit
+  // In (−1.5, R + 0.5) turns: x itself is in (−1, R), the centre in [−1/2, 1/2).
+  const std::int32_t x =
+      equivalent * p.ratio_q - h * (std::int32_t{1} << p.shift) - p.residual_centre;
   const std::int32_t biased = x + unit + half;    // > 0: shifts below act on non-negative values
   const std::int32_t raw = (biased >> bits) - 1;  // round(x / unit) in [-1, R]
   FixedOrders out;
@@ -56,7 +62,7 @@ inline FixedOrders unwrapFixed(const FixedUnwrapParams& p, BinaryAngle phi_high,
 struct ReferenceOrders {
   int high = 0;
   int low = 0;
-  double residual_rad = 0;  // R·φeq − φh − 2πK, in [-π, π)
+  double residual_rad = 0;  // R·φeq − φh − 2πK − centre, in [-π, π)
 };
 
 class TwoWavelengthUnwrapper {
@@ -78,7 +84,8 @@ class TwoWavelengthUnwrapper {
   int ordersLow() const { return params_.orders_low; }
   bool ratioIsInteger() const { return ratio_is_integer_; }
 
-  ReferenceOrders unwrap(double phi_high_rad, double phi_low_rad) const;
+  // `centre_rad`: the centre the residual is taken about (algo/order_residual.hpp).
+  ReferenceOrders unwrap(double phi_high_rad, double phi_low_rad, double centre_rad = 0) const;
 
   const FixedUnwrapParams& fixedParams() const { return params_; }
   FixedOrders unwrap(BinaryAngle phi_high, BinaryAngle phi_low) const {

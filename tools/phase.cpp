@@ -77,6 +77,11 @@ void runPhase(const PhaseRequest& request) {
           {"low", bundle.frameCount(request.camera, FringeSet::Low)}}},
         {"own_sets", bundle.info().hasOwnSets(request.camera)},
         {"valid_fraction", maps.valid_fraction},
+        {"order_residual",
+         {{"centre_rad", maps.order_residual.centre_rad},
+          {"spread_rad", maps.order_residual.spread_rad},
+          {"bound_rad", maps.order_residual.bound_rad},
+          {"samples", maps.order_residual.samples}}},
         {"mean_modulation", std::isfinite(mean_modulation) ? mean_modulation : 0.0},
         {"timings_ms",
          {{"read", phase.read_ms},
@@ -88,7 +93,9 @@ void runPhase(const PhaseRequest& request) {
     std::cout << summary.dump() << "\n";
   } else {
     std::cout << "phase: " << request.camera << " " << phase.size.width << "x" << phase.size.height
-              << ", valid " << maps.valid_fraction * 100.0 << " %, mean modulation "
+              << ", valid " << maps.valid_fraction * 100.0 << " %, order residual centre "
+              << maps.order_residual.centre_rad << " rad, spread " << maps.order_residual.spread_rad
+              << " rad, bound " << maps.order_residual.bound_rad << " rad, mean modulation "
               << mean_modulation << " counts, fold " << phase.fold_ms << " ms, finalize "
               << phase.finalize_ms << " ms -> " << out.string() << "\n";
   }

@@ -10,8 +10,10 @@
 #include <functional>
 #include <numbers>
 #include <random>
+#include <set>
 #include <string>
 
+#include "algo/order_residual.hpp"
 #include "synthetic_fringes.hpp"
 
 namespace cylscan::algo {
@@ -272,12 +274,14 @@ TEST(PhaseEngine, LargeDepthStepsGetTheRightOrderAtEveryPixel) {
 // ---- validity flags ---------------------------------------------------------------
 
 TEST(PhaseEngine, FlagsLowModulationSaturationAndInconsistentOrders) {
-  // Columns: [0,32) dark (B = 2 < 5.1), [32,64) low phase corrupted by 0.3 rad
-  // (residual 9·0.3 = 2.7 rad > π/2), [64,96) saturated (A + B = 300), [96,128) fine.
+  // Columns: [0,32) dark (B = 2 < 5.1), [32,48) low phase corrupted by 0.3 rad
+  // (residual 9·0.3 = 2.7 rad, far beyond the spread of the rest), [48,64)
+  // fine, [64,96) saturated (A + B = 300), [96,128) fine. The fine pixels are
+  // the majority of the modulated ones, so the residuals' centre is theirs.
   Scene scene = testing::rampScene(smallSize(), 110, 80);
   scene.modulation.colRange(0, 32).setTo(2.0);
   scene.low_offset = cv::Mat::zeros(smallSize(), CV_64F);
-  scene.low_offset.colRange(32, 64).setTo(0.3);
+  scene.low_offset.colRange(32, 48).setTo(0.3);
   scene.background.colRange(64, 96).setTo(200.0);
   scene.modulation.colRange(64, 96).setTo(100.0);
   for (bool fixed : {true, false}) {
@@ -286,7 +290,7 @@ TEST(PhaseEngine, FlagsLowModulationSaturationAndInconsistentOrders) {
     for (int y = 0; y < smallSize().height; ++y) {
       for (int x = 0; x < smallSize().width; ++x) {
         const std::uint8_t flags = maps.invalid.at<std::uint8_t>(y, x);
-        const int region = x / 32;
+        const int region = x >= 32 && x < 48 ? 1 : x >= 48 && x < 64 ? 3 : x / 32;
         if (region == 0) {
           ASSERT_TRUE(flags & kLowModulation) << x << "," << y;
         }
@@ -309,7 +313,41 @@ TEST(PhaseEngine, FlagsLowModulationSaturationAndInconsistentOrders) {
         ASSERT_EQ(std::isnan(maps.fused.at<float>(y, x)), flags != 0);
       }
     }
-    EXPECT_NEAR(maps.valid_fraction, 0.25, 1e-12);
+    EXPECT_NEAR(maps.valid_fraction, 48.0 / 128, 1e-12);
+    EXPECT_NEAR(maps.order_residual.centre_rad, 0, 0.01);
+    EXPECT_NEAR(maps.order_residual.bound_rad, std::numbers::pi / 2, 1e-6);
+  }
+}
+
+// Any constant phase offset of the low set (a misaligned slot half, a start
+// angle off by a fraction of a degree) moves every residual by −R·δ. The
+// engine finds that centre and unwraps around it: the same pixels stay valid,
+// and every order moves by one constant (mod 9), so Φ keeps its shape.
+TEST(PhaseEngine, AnyOffsetBetweenTheSetsUnwrapsTheSame) {
+  const Scene clean = testing::rampScene(smallSize(), 110, 80);
+  for (bool fixed : {true, false}) {
+    const PhaseOptions o = fixed ? fixedOptions() : referenceOptions();
+    const PhaseMaps ref = runScan(clean, deviceHigh(), deviceLow(), o, 0.5);
+    ASSERT_EQ(ref.valid_fraction, 1.0);
+    for (double delta : {0.1, 0.17, 0.3, -0.25, 0.6, 0.349}) {
+      Scene scene = clean;
+      scene.low_offset = cv::Mat(smallSize(), CV_64F, cv::Scalar(delta));
+      const PhaseMaps maps = runScan(scene, deviceHigh(), deviceLow(), o, 0.5);
+      const std::string what = (fixed ? "fixed, " : "reference, ") + std::to_string(delta);
+      EXPECT_EQ(maps.valid_fraction, 1.0) << what;
+      EXPECT_NEAR(std::remainder(maps.order_residual.centre_rad + 9 * delta, kTwoPi), 0, 0.01)
+          << what;
+      EXPECT_GT(maps.order_residual.samples, kMinResidualSamples) << what;
+      std::set<int> shifts;
+      for (int y = 0; y < smallSize().height; ++y) {
+        for (int x = 0; x < smallSize().width; ++x) {
+          const int k = maps.fringe_order.at<std::int16_t>(y, x);
+          const int k0 = ref.fringe_order.at<std::int16_t>(y, x);
+          shifts.insert(((k - k0) % 9 + 9) % 9);
+        }
+      }
+      EXPECT_EQ(shifts.size(), 1u) << what;
+    }
   }
 }
 
@@ -571,7 +609,7 @@ TEST(PhaseEngine, RejectsBadOptionsPeriodsAndShifts) {
   PhaseEngine e(smallSize(), deviceHigh(), deviceLow(), fixedOptions(12));
   EXPECT_EQ(e.options().saturation_level, 4095);
   EXPECT_NEAR(e.options().min_modulation, 0.02 * 4095, 1e-9);
-  EXPECT_NEAR(e.options().max_order_error_rad, std::numbers::pi / 2, 1e-15);
+  EXPECT_EQ(e.options().max_order_error_rad, -1);  // -1: from the scan's residual spread
 }
 
 }  // namespace
