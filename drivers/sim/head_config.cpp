@@ -102,6 +102,15 @@ ProjectorParams readProjector(TableReader r) {
             "must be < 90 and differ from theta_high_deg");
   p.duty = r.number("duty", p.duty);
   r.require(p.duty > 0 && p.duty < 1, "duty", "must be in (0, 1)");
+  p.low_half_offset_deg = r.number("low_half_offset_deg", p.low_half_offset_deg);
+  r.require(std::abs(p.low_half_offset_deg) < p.theta_low_deg / 2, "low_half_offset_deg",
+            "must be within half a low period of 180°");
+  p.slot_pitch_error_deg = r.nonNegative("slot_pitch_error_deg", p.slot_pitch_error_deg);
+  r.require(p.slot_pitch_error_deg < p.theta_high_deg / 10, "slot_pitch_error_deg",
+            "must be < theta_high_deg / 10");
+  p.slot_width_error = r.nonNegative("slot_width_error", p.slot_width_error);
+  r.require(p.slot_width_error < 0.1, "slot_width_error", "must be < 0.1 (of a period)");
+  p.slot_error_seed = static_cast<std::uint64_t>(r.integer("slot_error_seed", 1));
   const std::string kernel = r.string("blur_kernel", "gaussian");
   r.require(kernel == "gaussian" || kernel == "box", "blur_kernel", "must be gaussian or box");
   p.blur_kernel = kernel == "box" ? BlurKernel::Box : BlurKernel::Gaussian;

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <stdexcept>
 #include <string>
 
@@ -58,16 +59,21 @@ CylindricalProjector::CylindricalProjector(const ProjectorParams& params) : para
   source_main_ = origin_ + rotation_ * source_local_;
   radius2_ = params_.radius_mm * params_.radius_mm;
 
-  // Slot centres: m·θh on [0, 180), 180 + m·θl on [180, 360).
+  // Slot centres: m·θh on [0, 180), 180 + offset + m·θl on [180, 360), each
+  // with its machining error.
   const double th = params_.theta_high_deg, tl = params_.theta_low_deg;
-  for (int m = 0; m * th < 180.0 - 1e-9; ++m) {
-    const double c = m * th, w = params_.duty * th;
+  std::mt19937_64 rng(params_.slot_error_seed);
+  std::normal_distribution<double> unit(0.0, 1.0);
+  const auto slot = [&](double centre, double period) {
+    const double c = centre + params_.slot_pitch_error_deg * unit(rng);
+    const double w =
+        period * std::clamp(params_.duty + params_.slot_width_error * unit(rng), 0.05, 0.95);
     slots_.push_back({c - w / 2, c + w / 2});
-  }
-  for (int m = 0; 180.0 + m * tl < 360.0 - 1e-9; ++m) {
-    const double c = 180.0 + m * tl, w = params_.duty * tl;
-    slots_.push_back({c - w / 2, c + w / 2});
-  }
+  };
+  for (int m = 0; m * th < 180.0 - 1e-9; ++m)
+    slot(m * th, th);
+  for (int m = 0; 180.0 + m * tl < 360.0 - 1e-9; ++m)
+    slot(180.0 + params_.low_half_offset_deg + m * tl, tl);
 
   table_.assign(kTableSize + 1, 0.0f);
   const double reach = kernelReach(params_.blur_kernel, params_.blur_width_deg);

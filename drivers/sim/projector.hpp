@@ -27,6 +27,15 @@ struct ProjectorParams {
   double theta_high_deg = 5.0;   // slot period on the half β ∈ [0°, 180°)
   double theta_low_deg = 5.625;  // slot period on the half β ∈ [180°, 360°)
   double duty = 0.5;             // open fraction of a period
+  // How the cylinder was made. The low half's slots start this far from 180°
+  // (the two halves are cut or assembled separately), and every slot's centre
+  // and width carry a machining error: Gaussian, σ in degrees and as a
+  // fraction of the period, drawn from `slot_error_seed` (the same cylinder on
+  // every run).
+  double low_half_offset_deg = 0.0;
+  double slot_pitch_error_deg = 0.0;
+  double slot_width_error = 0.0;
+  std::uint64_t slot_error_seed = 1;
   BlurKernel blur_kernel = BlurKernel::Gaussian;
   double blur_width_deg = 0.6;           // Gaussian σ, or the box's full width (0: sharp slots)
   double eccentricity_mm = 0.02;         // cylinder centre off the rotation axis
