@@ -78,6 +78,15 @@ ResidualRule residualRule(std::span<std::int32_t> residuals, const PipelineSetup
   const ResidualStatistics stats = measureResiduals(residuals, bits);
   ResidualRule rule;
   rule.centre = stats.centre;
+  if (const std::optional<double>& reference = setup.options.order_reference_rad) {
+    const std::int32_t unit = std::int32_t{1} << bits;
+    const auto anchor = wrapResidual(
+        std::llround(*reference / (2 * std::numbers::pi) * static_cast<double>(unit)), bits);
+    // Too few samples: no centre was measured, and the calibration's is the best guess.
+    rule.centre = stats.samples >= kMinResidualSamples
+                      ? anchor + wrapResidual(std::int64_t{stats.centre} - anchor, bits)
+                      : anchor;
+  }
   if (setup.options.max_order_error_rad != -1) {
     rule.bound = u.fixedResidualBound(setup.options.max_order_error_rad);
   } else if (stats.samples >= kMinResidualSamples) {
@@ -189,6 +198,12 @@ void PhaseEngine::fold(FringeSet set, int k, const cv::Mat& frame) {
   im.folded[index(set)][static_cast<std::size_t>(k)] = true;
   ++im.count[index(set)];
   if (im.complete(set)) im.active.reset();
+}
+
+void PhaseEngine::setOrderReference(std::optional<double> reference_rad) {
+  if (reference_rad && !std::isfinite(*reference_rad))
+    throw std::invalid_argument("order reference: not a finite angle");
+  impl_->setup.options.order_reference_rad = reference_rad;
 }
 
 PhaseMaps PhaseEngine::finalize() {

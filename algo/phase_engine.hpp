@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <stdexcept>
 #include <vector>
 
@@ -35,6 +36,12 @@ struct PhaseOptions {
   // or π/2 when too few pixels are modulated to measure it. A residual of r
   // means the nearest other order would need an error of 2π − |r|.
   double max_order_error_rad = -1;
+  // The centre the orders are numbered about, in radians: a quasi-calibration's
+  // (QuasiCalibrationInfo::order_centre_rad). The centre is only known modulo
+  // 2π, and a centre taken across ±π from the calibration's would number every
+  // order one off and move the seam where K wraps; so the measured centre is
+  // taken within ±π of this one. Unset: the measured centre, in [−π, π).
+  std::optional<double> order_reference_rad;
   bool fixed_point = true;  // false: the double reference path
   // Which build of the fixed-point kernels runs (same bits either way).
   KernelIsa kernel_isa = KernelIsa::kAuto;
@@ -113,6 +120,9 @@ class PhaseEngine {
   // and flagged saturated.
   void fold(FringeSet set, int k, const cv::Mat& frame);
 
+  // PhaseOptions::order_reference_rad for the finalizes that follow: the
+  // reference of the calibration this camera's phase is used with.
+  void setOrderReference(std::optional<double> reference_rad);
   PhaseMaps finalize();  // throws std::logic_error if frames are missing
   // The same into existing maps, reusing their memory when size and type fit.
   // finalize() does not consume the state: it may be called again.

@@ -20,8 +20,8 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 //
 // offset size  field (all little-endian)
 //      0    8  magic "CYLQCAL1"
-//      8    4  u32 version (1)
-//     12    4  u32 header bytes (64)
+//      8    4  u32 version (2; 1 is read too)
+//     12    4  u32 header bytes (72; 64 in version 1)
 //     16    4  u32 width
 //     20    4  u32 height
 //     24    4  u32 model id (3 = cubic)
@@ -33,13 +33,18 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 //     48    4  f32 pooled RMSE (mm, NaN if unknown)
 //     52    4  f32 S_eff (mm/rad, NaN if unknown)
 //     56    4  u32 payload bytes
-//     60    4  u32 CRC-32 (IEEE, reflected 0xEDB88320) of bytes [0, 60) and the payload
-//     64       payload: width·height validity bytes (0/1), zero padding to a
+//     60    4  u32 CRC-32 (IEEE, reflected 0xEDB88320) of bytes [0, 60) and of
+//              everything from byte 64 on
+//     64    4  f32 order-residual centre the poses were unwrapped about (rad, NaN
+//              if unknown; version 2 only)
+//     68    4  f32 the poses' order-residual spread (rad, NaN if unknown; version 2)
+//     72       payload (at 64 in version 1): width·height validity bytes (0/1), zero padding to a
 //              multiple of 4, then width·height PixelPolynomial records
 //              (14 f32: Φc, g, x0..x3, y0..y3, z0..z3), row-major.
 constexpr char kMagic[8] = {'C', 'Y', 'L', 'Q', 'C', 'A', 'L', '1'};
-constexpr std::uint32_t kVersion = 1;
-constexpr std::size_t kHeaderBytes = 64;
+constexpr std::uint32_t kVersion = 2;
+constexpr std::size_t kHeaderBytes = 72;
+constexpr std::size_t kHeaderBytesV1 = 64;
 constexpr std::uint32_t kCubicModel = 3;
 constexpr std::size_t kRecordBytes = sizeof(PixelPolynomial);
 constexpr std::size_t kCrcOffset = 60;
@@ -67,7 +72,7 @@ std::uint32_t crc32Update(std::uint32_t crc, std::span<const std::byte> bytes) {
 std::uint32_t fileCrc(std::span<const std::byte> file) {
   std::uint32_t crc = 0xffffffffu;
   crc = crc32Update(crc, file.first(kCrcOffset));
-  crc = crc32Update(crc, file.subspan(kHeaderBytes));
+  crc = crc32Update(crc, file.subspan(kHeaderBytesV1));
   return crc ^ 0xffffffffu;
 }
 
@@ -100,21 +105,26 @@ struct ParsedHeader {
   cv::Size size;
   QuasiCalibrationInfo info;
   std::size_t valid_count = 0;
+  std::size_t header_bytes = 0;  // where the validity plane starts
   std::size_t records_offset = 0;
 };
 
 // Every check of a serialised calibration, in the order that names the most
 // specific fault first. Does not look at the validity plane's values.
 ParsedHeader parseHeader(std::span<const std::byte> bytes) {
-  if (bytes.size() < kHeaderBytes)
+  if (bytes.size() < kHeaderBytesV1)
     fault("truncated: " + std::to_string(bytes.size()) + " bytes, shorter than the 64-byte header");
   if (std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
     fault("bad magic (not a CYLQCAL1 calibration)");
   const std::byte* h = bytes.data();
   const std::uint32_t version = getU32(h + 8);
-  if (version != kVersion) fault("unsupported version " + std::to_string(version));
-  if (getU32(h + 12) != kHeaderBytes || getU32(h + 32) != kRecordBytes)
+  if (version != kVersion && version != 1) fault("unsupported version " + std::to_string(version));
+  const std::size_t header_bytes = version == 1 ? kHeaderBytesV1 : kHeaderBytes;
+  if (getU32(h + 12) != header_bytes || getU32(h + 32) != kRecordBytes)
     fault("unsupported layout (header or record size)");
+  if (bytes.size() < header_bytes)
+    fault("truncated: " + std::to_string(bytes.size()) + " bytes, shorter than the " +
+          std::to_string(header_bytes) + "-byte header");
   const std::uint32_t model = getU32(h + 24);
   if (model != kCubicModel) fault("unknown model id " + std::to_string(model));
   const std::uint32_t source = getU32(h + 28);
@@ -127,12 +137,12 @@ ParsedHeader parseHeader(std::span<const std::byte> bytes) {
   const std::size_t pixels = std::size_t{width} * height;
   const std::size_t payload = paddedValidityBytes(pixels) + pixels * kRecordBytes;
   if (getU32(h + 56) != payload) fault("payload size does not match the image size");
-  if (bytes.size() < kHeaderBytes + payload)
+  if (bytes.size() < header_bytes + payload)
     fault("truncated: " + std::to_string(bytes.size()) + " bytes, expected " +
-          std::to_string(kHeaderBytes + payload));
-  if (bytes.size() > kHeaderBytes + payload)
+          std::to_string(header_bytes + payload));
+  if (bytes.size() > header_bytes + payload)
     fault("trailing bytes: " + std::to_string(bytes.size()) + " bytes, expected " +
-          std::to_string(kHeaderBytes + payload));
+          std::to_string(header_bytes + payload));
   if (fileCrc(bytes) != getU32(h + kCrcOffset)) fault("checksum mismatch (corrupt data)");
 
   ParsedHeader out;
@@ -143,7 +153,12 @@ ParsedHeader parseHeader(std::span<const std::byte> bytes) {
   out.valid_count = getU32(h + 44);
   out.info.pooled_rmse_mm = getF32(h + 48);
   out.info.sensitivity_mm_per_rad = getF32(h + 52);
-  out.records_offset = kHeaderBytes + paddedValidityBytes(pixels);
+  if (version >= 2) {
+    out.info.order_centre_rad = getF32(h + 64);
+    out.info.order_spread_rad = getF32(h + 68);
+  }
+  out.header_bytes = header_bytes;
+  out.records_offset = header_bytes + paddedValidityBytes(pixels);
   return out;
 }
 
@@ -183,7 +198,7 @@ QuasiCalibrationView QuasiCalibrationView::fromBytes(std::span<const std::byte> 
   const ParsedHeader header = parseHeader(bytes);
   if (reinterpret_cast<std::uintptr_t>(bytes.data()) % alignof(PixelPolynomial) != 0)
     fault("in-place use needs 4-byte aligned bytes");
-  const auto* valid = reinterpret_cast<const std::uint8_t*>(bytes.data() + kHeaderBytes);
+  const auto* valid = reinterpret_cast<const std::uint8_t*>(bytes.data() + header.header_bytes);
   checkValidityPlane(header, valid);
   const auto* pixels =
       reinterpret_cast<const PixelPolynomial*>(bytes.data() + header.records_offset);
@@ -269,6 +284,11 @@ void QuasiCalibration::setResidualSummary(float pooled_rmse_mm, float sensitivit
   info_.sensitivity_mm_per_rad = sensitivity_mm_per_rad;
 }
 
+void QuasiCalibration::setOrderResidual(float centre_rad, float spread_rad) {
+  info_.order_centre_rad = centre_rad;
+  info_.order_spread_rad = spread_rad;
+}
+
 QuasiCalibrationView QuasiCalibration::view() const {
   QuasiCalibrationView view(size_, valid_.data(), pixels_.data(), info_);
   view.setExtrapolationLimit(limit_);
@@ -295,6 +315,8 @@ std::vector<std::byte> QuasiCalibration::serialize() const {
   putF32(h + 48, info_.pooled_rmse_mm);
   putF32(h + 52, info_.sensitivity_mm_per_rad);
   putU32(h + 56, static_cast<std::uint32_t>(payload));
+  putF32(h + 64, info_.order_centre_rad);
+  putF32(h + 68, info_.order_spread_rad);
   for (std::size_t i = 0; i < pixels; ++i)
     h[kHeaderBytes + i] = static_cast<std::byte>(valid_[i] ? 1 : 0);
   std::byte* record = h + kHeaderBytes + validity;
@@ -316,7 +338,7 @@ QuasiCalibration QuasiCalibration::deserialize(std::span<const std::byte> bytes)
   const std::size_t pixels = static_cast<std::size_t>(header.size.area());
   std::vector<std::uint8_t> valid(pixels);
   for (std::size_t i = 0; i < pixels; ++i)
-    valid[i] = std::to_integer<std::uint8_t>(bytes[kHeaderBytes + i]);
+    valid[i] = std::to_integer<std::uint8_t>(bytes[header.header_bytes + i]);
   checkValidityPlane(header, valid.data());
   std::vector<PixelPolynomial> records(pixels);
   const std::byte* at = bytes.data() + header.records_offset;

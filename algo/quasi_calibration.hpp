@@ -40,6 +40,11 @@ struct QuasiCalibrationInfo {
   std::uint32_t min_poses = 0;
   float pooled_rmse_mm = std::numeric_limits<float>::quiet_NaN();          // Eq. (12), once known
   float sensitivity_mm_per_rad = std::numeric_limits<float>::quiet_NaN();  // S_eff
+  // The order-residual centre the poses were unwrapped about
+  // (PhaseOptions::order_reference_rad), and the poses' spread about it; NaN
+  // when unknown (a version-1 file).
+  float order_centre_rad = std::numeric_limits<float>::quiet_NaN();
+  float order_spread_rad = std::numeric_limits<float>::quiet_NaN();
 };
 
 // Beyond this |t| (the calibrated phase range is |t| ≤ 1) a pixel is not
@@ -100,6 +105,8 @@ class QuasiCalibration {
   cv::Size size() const { return size_; }
   const QuasiCalibrationInfo& info() const { return info_; }
   void setResidualSummary(float pooled_rmse_mm, float sensitivity_mm_per_rad);
+  // QuasiCalibrationInfo::order_centre_rad and order_spread_rad.
+  void setOrderResidual(float centre_rad, float spread_rad);
   void setExtrapolationLimit(float max_abs_t) { limit_ = max_abs_t; }
 
   QuasiCalibrationView view() const;  // valid while *this lives unchanged

@@ -11,10 +11,10 @@ namespace {
 
 constexpr double kTwoPi = 2 * std::numbers::pi;
 
+// k into [0, orders) for any integer k.
 int wrapOrder(int k, int orders) {
-  if (k < 0) return k + orders;
-  if (k >= orders) return k - orders;
-  return k;
+  const int r = k % orders;
+  return r < 0 ? r + orders : r;
 }
 
 }  // namespace
@@ -40,9 +40,9 @@ TwoWavelengthUnwrapper::TwoWavelengthUnwrapper(double period_high_deg, double pe
   ratio_is_integer_ = std::abs(ratio_high_ - nearest) <= 1e-9 * nearest;
   if (ratio_is_integer_) ratio_high_ = nearest;
 
-  // Largest shift with (R + 2)·2^(16+shift) < 2^31: keeps unwrapFixed in int32.
+  // Largest shift with (R + 3.5)·2^(16+shift) < 2^31: keeps unwrapFixed in int32.
   int shift = 0;
-  while (shift < 14 && (ratio_high_ + 2) * std::ldexp(1.0, 16 + shift + 1) < 2147483647.0) {
+  while (shift < 14 && (ratio_high_ + 3.5) * std::ldexp(1.0, 16 + shift + 1) < 2147483647.0) {
     ++shift;
   }
   params_.shift = shift;

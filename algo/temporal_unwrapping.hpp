@@ -24,7 +24,8 @@ struct FixedUnwrapParams {
   std::int32_t orders_high = 1;
   std::int32_t orders_low = 1;
   // The centre the residual is taken about (algo/order_residual.hpp), in the
-  // residual's unit, in [−1/2, 1/2) turn: 0 for sets exactly in phase.
+  // residual's unit, in [−1, 1) turn: 0 for sets exactly in phase; beyond
+  // ±1/2 turn when it is taken near a calibration's centre.
   std::int32_t residual_centre = 0;
 };
 
@@ -35,7 +36,7 @@ struct FixedOrders {
   std::int32_t residual = 0;
 };
 
-// All integer, no branches (selects), no overflow: (R + 2)·2^(16+shift) < 2^31.
+// All integer, no branches (selects), no overflow: (R + 3.5)·2^(16+shift) < 2^31.
 inline FixedOrders unwrapFixed(const FixedUnwrapParams& p, BinaryAngle phi_high,
                                BinaryAngle phi_low) {
   const int bits = 16 + p.shift;
@@ -43,18 +44,24 @@ inline FixedOrders unwrapFixed(const FixedUnwrapParams& p, BinaryAngle phi_high,
   const std::int32_t half = unit >> 1;
   const auto h = static_cast<std::int32_t>(phi_high);
   const auto equivalent = static_cast<std::int32_t>(static_cast<BinaryAngle>(phi_high - phi_low));
-  // In (−1.5, R + 0.5) turns: x itself is in (−1, R), the centre in [−1/2, 1/2).
+  // In (−2, R + 1) turns: R·φeq − φh is in (−1, R), the centre in [−1, 1).
   const std::int32_t x =
       equivalent * p.ratio_q - h * (std::int32_t{1} << p.shift) - p.residual_centre;
-  const std::int32_t biased = x + unit + half;    // > 0: shifts below act on non-negative values
-  const std::int32_t raw = (biased >> bits) - 1;  // round(x / unit) in [-1, R]
+  const std::int32_t biased = x + 2 * unit + half;  // > 0: shifts below act on non-negative values
+  const std::int32_t raw = (biased >> bits) - 2;    // round(x / unit) in [-2, R + 1]
   FixedOrders out;
   out.residual = (biased & (unit - 1)) - half;
+  // raw is in [−2, R + 1] and orders_high = ceil(R) ≥ 2, so one add and one
+  // subtract bring K into [0, orders_high). The low order raw − [φh < φl] is in
+  // [−3, R + 1] with orders_low = ceil(R − 1) ≥ 1: three of each cover it.
   std::int32_t k = raw < 0 ? raw + p.orders_high : raw;
   out.high = k >= p.orders_high ? k - p.orders_high : k;
   std::int32_t kl = raw - (phi_high < phi_low ? 1 : 0);
-  kl = kl < 0 ? kl + p.orders_low : kl;
-  out.low = kl >= p.orders_low ? kl - p.orders_low : kl;
+  for (int i = 0; i < 3; ++i)
+    kl = kl < 0 ? kl + p.orders_low : kl;
+  for (int i = 0; i < 3; ++i)
+    kl = kl >= p.orders_low ? kl - p.orders_low : kl;
+  out.low = kl;
   return out;
 }
 

@@ -64,6 +64,10 @@ int PhaseSink::folded(std::string_view name) const {
   return camera(name).folded;
 }
 
+cv::Size PhaseSink::frameSize(std::string_view name) const {
+  return camera(name).engine.size();
+}
+
 std::size_t PhaseSink::workingStateBytes() const {
   std::size_t bytes = 0;
   for (const auto& [name, c] : cameras_)
@@ -71,13 +75,18 @@ std::size_t PhaseSink::workingStateBytes() const {
   return bytes;
 }
 
-algo::PhaseMaps PhaseSink::finalize(std::string_view name) {
-  return camera(name).engine.finalize();
+algo::PhaseMaps PhaseSink::finalize(std::string_view name, std::optional<double> order_reference) {
+  algo::PhaseEngine& engine = camera(name).engine;
+  engine.setOrderReference(order_reference);
+  return engine.finalize();
 }
 
-algo::CompactPhase PhaseSink::finalizeCompact(std::string_view name) {
+algo::CompactPhase PhaseSink::finalizeCompact(std::string_view name,
+                                              std::optional<double> order_reference) {
+  algo::PhaseEngine& engine = camera(name).engine;
+  engine.setOrderReference(order_reference);
   algo::CompactPhase out;
-  camera(name).engine.finalizeCompact(out);
+  engine.finalizeCompact(out);
   return out;
 }
 

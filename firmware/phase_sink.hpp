@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -30,9 +31,14 @@ class PhaseSink final : public FrameSink {
                const cv::Mat& image) override;
 
   // The maps of a camera once every frame was folded; std::logic_error before.
-  algo::PhaseMaps finalize(std::string_view camera);
-  algo::CompactPhase finalizeCompact(std::string_view camera);
+  // `order_reference`: the order-residual centre of the calibration the maps
+  // are used with (algo::PhaseOptions::order_reference_rad).
+  algo::PhaseMaps finalize(std::string_view camera,
+                           std::optional<double> order_reference = std::nullopt);
+  algo::CompactPhase finalizeCompact(std::string_view camera,
+                                     std::optional<double> order_reference = std::nullopt);
   int folded(std::string_view camera) const;
+  cv::Size frameSize(std::string_view camera) const;  // the size of its frames
   // The engines' working state, all cameras (O(K × pixels): no frame is kept).
   std::size_t workingStateBytes() const;
   // The geometry a camera's engine uses (its own angles, the set's period).

@@ -6,7 +6,10 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
+#include <optional>
 #include <span>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -26,6 +29,29 @@ bool finite3(const cv::Vec3f& p) {
 }
 
 }  // namespace
+
+std::optional<double> orderReference(const algo::QuasiCalibrationInfo& calibration) {
+  if (!std::isfinite(calibration.order_centre_rad)) return std::nullopt;
+  return calibration.order_centre_rad;
+}
+
+std::optional<std::string> orderDriftWarning(const std::string& camera,
+                                             const algo::OrderResidual& scan,
+                                             const algo::QuasiCalibrationInfo& calibration) {
+  const std::optional<double> reference = orderReference(calibration);
+  if (!reference || scan.samples == 0) return std::nullopt;
+  const double drift = std::remainder(scan.centre_rad - *reference, 2 * std::numbers::pi);
+  if (std::abs(drift) <= kOrderDriftWarnRad) return std::nullopt;
+  std::ostringstream text;
+  text.precision(3);
+  text << camera << ": the order-residual centre moved " << drift << " rad from its calibration's ("
+       << *reference
+       << " rad): the low fringe set moved against the high one since calibration (start "
+          "angles changed, the cylinder re-mounted or a slot half moved, steps lost between "
+          "the sets, stage backlash). Orders are still numbered as calibrated, but the fused "
+          "phase and depth are biased: check the head and calibrate again";
+  return text.str();
+}
 
 const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseSource choice) {
   return choice == PhaseSource::High ? maps.absolute : maps.fused;

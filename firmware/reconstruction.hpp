@@ -22,6 +22,30 @@ namespace cylscan::firmware {
 // The map of `maps` for the choice (CV_32F, NaN where invalid); shares the data.
 const cv::Mat& absolutePhase(const algo::PhaseMaps& maps, PhaseSource choice);
 
+// The order-residual centre a calibration was made with, when it records one:
+// the reference its scans number their orders about.
+std::optional<double> orderReference(const algo::QuasiCalibrationInfo& calibration);
+
+// How far a scan's order-residual centre may move from its calibration's
+// before the scan warns: π/4.
+// - What moves it: only the low set against the high set (R times the low
+//   set's phase offset, 10 rad per degree on a 5°/5.625° cylinder). Homing
+//   error moves both sets alike and leaves it; its own noise is the spread
+//   over √samples, about 1e-3 rad.
+// - π/4 is 0.078° of the low set: two full steps of a 1/16-microstepped 45:1
+//   stage. A start angle changed, a slot half moved, steps lost between the
+//   sets or backlash that grew show well before the centre nears ±π from the
+//   calibration's, where the numbering would flip by one order.
+// - The fused phase moves with the low set, so such a drift also biases depth.
+inline constexpr double kOrderDriftWarnRad = 0.7853981633974483;
+
+// The warning for `camera` when its scan's centre moved more than
+// kOrderDriftWarnRad from the calibration's; nullopt when it did not, or when
+// either centre is unknown.
+std::optional<std::string> orderDriftWarning(const std::string& camera,
+                                             const algo::OrderResidual& scan,
+                                             const algo::QuasiCalibrationInfo& calibration);
+
 // The largest quasi-calibration the format allows (2^25 pixels × 57 bytes) and a bit.
 inline constexpr std::uintmax_t kMaxCalibrationFileBytes = (std::uintmax_t{1} << 25) * 57 + 4096;
 

@@ -110,10 +110,13 @@ class OutputWriter {
       : phase_(phase), calibrations_(calibrations), options_(options), staged_(dir) {}
 
   ScanResult write() {
-    const algo::PhaseMaps maps = phase_.finalize("main");
+    const algo::PhaseMaps maps = phase_.finalize(
+        "main", calibrations_.main ? orderReference(calibrations_.main->info()) : std::nullopt);
     result_.calibrated = calibrations_.main.has_value();
+    if (calibrations_.main) warnIfDrifted("main", maps, calibrations_.main->info());
     result_.figures.phase = options_.phase;
     result_.figures.phase_valid_fraction = maps.valid_fraction;
+    result_.figures.order_residual = maps.order_residual;
     const bool ring = !options_.ring_cameras.empty();
     cv::Mat xyz, depth;
     if (calibrations_.main) {
@@ -181,6 +184,12 @@ class OutputWriter {
     return ring;
   }
 
+  void warnIfDrifted(const std::string& camera, const algo::PhaseMaps& maps,
+                     const algo::QuasiCalibrationInfo& calibration) {
+    if (auto warning = orderDriftWarning(camera, maps.order_residual, calibration))
+      result_.warnings.push_back(std::move(*warning));
+  }
+
   // `camera`'s cloud when it is calibrated (main with the scan's phase, the
   // others each with its calibration's own), filling in `entry`.
   std::optional<CameraCloud> cameraCloud(const std::string& camera,
@@ -197,10 +206,11 @@ class OutputWriter {
       const CalibrationDir& installed = *calibrations_.installed;
       std::error_code ec;
       if (!fs::exists(installed.calibrationFile(camera), ec)) return out;
-      const algo::PhaseMaps maps = phase_.finalize(camera);
       const std::optional<algo::QuasiCalibration> calib =
-          installed.calibration(camera, maps.texture.size());
+          installed.calibration(camera, phase_.frameSize(camera));
       if (!calib) return out;  // removed meanwhile
+      const algo::PhaseMaps maps = phase_.finalize(camera, orderReference(calib->info()));
+      warnIfDrifted(camera, maps, calib->info());
       entry.phase = calib->info().phase_source;
       entry.phase_valid_fraction = maps.valid_fraction;
       out = CameraCloud{
@@ -307,6 +317,13 @@ MergedCloud parseMergedCloud(const std::string& name) {
 ScanResult writeScanOutput(PhaseSink& phase, const ScanCalibrations& calibrations,
                            const ScanOutputOptions& options, const fs::path& dir) {
   return OutputWriter(phase, calibrations, options, dir).write();
+}
+
+nlohmann::json orderResidualJson(const algo::OrderResidual& residual) {
+  return {{"centre_rad", residual.centre_rad},
+          {"spread_rad", residual.spread_rad},
+          {"bound_rad", residual.bound_rad},
+          {"samples", residual.samples}};
 }
 
 }  // namespace cylscan::firmware

@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "algo/quasi_calibration.hpp"
 #include "firmware/acquisition.hpp"
 #include "firmware/phase_sink.hpp"
@@ -115,11 +117,18 @@ struct RingOutput {
 struct OutputFigures {
   PhaseSource phase = PhaseSource::Fused;
   double phase_valid_fraction = 0.0;  // main's
+  // Main's order residual: the low set's offset against the high set as the
+  // residuals' centre, their spread and the bound the validity rule used.
+  algo::OrderResidual order_residual;
   // The points of `cloud`: main's when calibrated; for a 360° scan always
   // (0 when no cloud was written).
   std::optional<std::size_t> points;
   std::optional<RingOutput> ring;  // a 360° scan's
 };
+
+// The order residual as the reports show it: centre_rad, spread_rad,
+// bound_rad, samples.
+nlohmann::json orderResidualJson(const algo::OrderResidual& residual);
 
 struct ScanResult {
   // Written, by name: `cloud`, `depth`, texture.png, phase.png, depth.png,
@@ -127,6 +136,9 @@ struct ScanResult {
   std::vector<std::string> files;
   bool calibrated = false;  // main had a calibration
   OutputFigures figures;
+  // What the scan should know of its phase: a calibrated camera's order
+  // residual that moved from its calibration's (orderDriftWarning).
+  std::vector<std::string> warnings;
 };
 
 // Writes the outputs of the scan whose frames `phase` folded into `dir`

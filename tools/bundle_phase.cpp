@@ -71,6 +71,7 @@ BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
   engine_options.bit_depth = bitDepthOf(bundle, first, options.bit_depth);
   engine_options.min_modulation = options.min_modulation;
   engine_options.fixed_point = !options.reference;
+  engine_options.order_reference_rad = options.order_reference_rad;
   out.bit_depth = engine_options.bit_depth;
   algo::PhaseEngine engine = makeEngine(bundle, camera, out.size, engine_options);
 

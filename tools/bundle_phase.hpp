@@ -3,6 +3,7 @@
 // bundle, frames streamed from disk one at a time (none is kept).
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include <opencv2/core.hpp>
@@ -17,6 +18,8 @@ struct BundlePhaseOptions {
   int bit_depth = 0;           // 16-bit frames: 0 = capture.json bit_depth, else 16
   double min_modulation = -1;  // counts; -1 = the engine's default
   bool reference = false;      // the double reference path instead of fixed point
+  // The centre the orders are numbered about (algo::PhaseOptions::order_reference_rad).
+  std::optional<double> order_reference_rad;
 };
 
 struct BundlePhase {

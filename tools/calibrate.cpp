@@ -16,12 +16,15 @@
 // For the residual pass (Eq. 12) each pose keeps only its masked phase map
 // (4 bytes a pixel, ~3.2 MB at 1000×800) and its plane: the targets are
 // recomputed from the rays, so no bundle is read twice.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -33,6 +36,7 @@
 #include "algo/quasi_calibration.hpp"
 #include "algo/ray_plane.hpp"
 #include "algo/surface_fit.hpp"
+#include "firmware/scan_output.hpp"
 #include "formats/atomic_file.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/input_error.hpp"
@@ -92,6 +96,17 @@ nlohmann::json vec(const Eigen::Vector3d& v) {
   return {v.x(), v.y(), v.z()};
 }
 
+// The poses' median order-residual spread, over those that measured one.
+double medianSpread(const std::vector<PlanePose>& poses) {
+  std::vector<double> spreads;
+  for (const PlanePose& pose : poses)
+    if (pose.order_residual.samples > 0) spreads.push_back(pose.order_residual.spread_rad);
+  if (spreads.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const auto middle = spreads.begin() + static_cast<std::ptrdiff_t>(spreads.size() / 2);
+  std::nth_element(spreads.begin(), middle, spreads.end());
+  return *middle;
+}
+
 nlohmann::json summaryJson(const CalibrateRequest& request, const std::vector<PlanePose>& poses,
                            const algo::QuasiCalibration& calib,
                            const algo::CalibrationResiduals& residuals,
@@ -112,6 +127,7 @@ nlohmann::json summaryJson(const CalibrateRequest& request, const std::vector<Pl
          {"plane", {{"point", vec(p.plane.point)}, {"normal", vec(p.plane.normal)}}},
          {"main_valid_fraction", p.main_valid_fraction},
          {"aux_valid_fraction", p.aux_valid_fraction},
+         {"order_residual", firmware::orderResidualJson(p.order_residual)},
          {"ms", p.ms}});
   }
   const double area = calib.size().area();
@@ -122,6 +138,7 @@ nlohmann::json summaryJson(const CalibrateRequest& request, const std::vector<Pl
           {"pooled_rmse_mm", residuals.pooled_depth_rmse_mm},
           {"pooled_distance_rmse_mm", residuals.pooled_distance_rmse_mm},
           {"sensitivity_mm_per_rad", residuals.sensitivity_mm_per_rad},
+          {"order_centre_rad", calib.info().order_centre_rad},
           {"residual_pixels", residuals.pixel_count},
           {"valid_pixels", calib.validCount()},
           {"valid_fraction", static_cast<double>(calib.validCount()) / area},
@@ -167,8 +184,10 @@ void runCalibrate(const CalibrateRequest& request) {
   algo::QuasiCalibrationFitter fitter(rays.size(), options);
   std::vector<PlanePose> poses;
   Stopwatch watch;
+  PoseOrderReference order_reference;
   for (const auto& bundle : bundles) {
-    PlanePose pose = measurer.measure(bundle);
+    PlanePose pose = measurer.measure(bundle, order_reference.value());
+    order_reference.follow(pose);
     const cv::Mat target = algo::intersectRaysWithPlane(rays, pose.plane);
     fitter.addPose(pose.phase, target);
     pose.target_pixels = finiteCount(pose.phase);
@@ -188,6 +207,8 @@ void runCalibrate(const CalibrateRequest& request) {
   const algo::CalibrationResiduals residuals = pass.result();
   calib.setResidualSummary(static_cast<float>(residuals.pooled_depth_rmse_mm),
                            static_cast<float>(residuals.sensitivity_mm_per_rad));
+  if (const std::optional<double> centre = order_reference.value())
+    calib.setOrderResidual(static_cast<float>(*centre), static_cast<float>(medianSpread(poses)));
   const double residual_ms = watch.lapMs();
   formats::writeFileAtomically(request.out, calib.serialize());
   const nlohmann::json timings = {{"measure", measure_ms},

@@ -13,7 +13,9 @@
 // fitted to every usable view of that camera, the extrinsics then come from a
 // small, well-conditioned problem, and a per-camera RMS printed by this tool
 // stays the RMS of the intrinsics that are written. --refine-jointly runs the
-// joint refinement (CALIB_USE_INTRINSIC_GUESS) for comparison.
+// joint refinement (CALIB_USE_INTRINSIC_GUESS) for comparison; the per-camera
+// RMS printed is then the joint model's, the one written (the parameters'
+// sigmas stay those of the separate fits, the only ones OpenCV estimates).
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -149,7 +151,7 @@ class StereoCalibrator {
     StereoFit fit;
     fitCameras(pairs, fit);
     if (dropOutliers(pairs, fit, rejected)) {
-      requireEnough(pairs, rejected);
+      requireEnough(pairs, rejected, " after dropping the reprojection outliers");
       fitCameras(pairs, fit);
     }
     fitPair(pairs, fit);
@@ -157,15 +159,19 @@ class StereoCalibrator {
   }
 
  private:
-  void requireEnough(const std::vector<PairCorners>& pairs,
-                     const std::vector<Rejection>& rejected) const {
+  // `when`: empty with the board found, else when the pairs were counted.
+  void requireEnough(const std::vector<PairCorners>& pairs, const std::vector<Rejection>& rejected,
+                     const std::string& when = "") const {
     if (static_cast<int>(pairs.size()) >= min_pairs_) return;
     std::string reasons;
     for (const auto& r : rejected)
       reasons += "; " + r.id + ": " + r.reason;
     throw std::runtime_error("calibrate-stereo: only " + std::to_string(pairs.size()) +
-                             " usable checkerboard pairs, at least " + std::to_string(min_pairs_) +
-                             " are needed; nothing written" + reasons);
+                             " usable checkerboard pairs" + when + ", at least " +
+                             std::to_string(min_pairs_) +
+                             " (--min-pairs) are needed; nothing "
+                             "written" +
+                             reasons);
   }
 
   std::vector<std::vector<cv::Point3f>> objects(std::size_t n) const {
@@ -227,9 +233,22 @@ class StereoCalibrator {
     }
     fit.rotation = cv::Matx33d(r);
     fit.translation = cv::Vec3d(t.at<double>(0), t.at<double>(1), t.at<double>(2));
+    double sum_main = 0, sum_aux = 0;
     for (int v = 0; v < per_view.rows; ++v) {
       const double a = per_view.at<double>(v, 0), b = per_view.at<double>(v, 1);
       fit.view_rms_px.push_back(std::sqrt(0.5 * (a * a + b * b)));
+      if (refine_jointly_) {
+        // The written intrinsics are the joint model's: so are the RMS shown.
+        fit.main.view_rms_px[static_cast<std::size_t>(v)] = a;
+        fit.aux.view_rms_px[static_cast<std::size_t>(v)] = b;
+      }
+      sum_main += a * a;
+      sum_aux += b * b;
+    }
+    if (refine_jointly_ && per_view.rows > 0) {
+      // Every view has the board's corner count: the RMS of the views' RMS.
+      fit.main.rms_px = std::sqrt(sum_main / per_view.rows);
+      fit.aux.rms_px = std::sqrt(sum_aux / per_view.rows);
     }
   }
 
@@ -311,6 +330,15 @@ void runCalibrateStereo(const CalibrateStereoRequest& request) {
   std::vector<Rejection> rejected;
   cv::Size size;
   std::vector<PairCorners> pairs = detectPairs(set, size, rejected);
+  if (pairs.empty() && !set.pairs.empty()) {
+    // Found nowhere: most often cols × rows counts squares, not inner corners.
+    throw formats::InputError(
+        std::filesystem::path(request.board) / "checkerboard.json",
+        "a board of " + std::to_string(set.board.cols) + " x " + std::to_string(set.board.rows) +
+            " inner corners was found in none of the " + std::to_string(set.pairs.size()) +
+            " pairs: check that cols and rows count inner corners (the "
+            "squares less one)");
+  }
   const StereoCalibrator calibrator(set.board, size, request);
   const StereoFit fit = calibrator.run(std::move(pairs), rejected);
   formats::writeStereoCalibration(request.out, toFile(fit, size));
@@ -333,7 +361,8 @@ void addCalibrateStereoCommand(CLI::App& app) {
       ->required();
   cmd->add_option("--out", request->out, "stereo calibration file to write (docs/formats.md)")
       ->required();
-  cmd->add_option("--min-pairs", request->min_pairs, "usable pairs needed (default 6)")
+  cmd->add_option("--min-pairs", request->min_pairs,
+                  "usable pairs needed, counted after dropping reprojection outliers (default 6)")
       ->check(CLI::Range(3, 10000));
   cmd->add_option("--model", request->model,
                   "distortion coefficients estimated: k1k2p1p2k3 (default), k1k2p1p2 or k1k2")

@@ -49,8 +49,12 @@ CameraReconstruction reconstructCamera(const formats::CaptureBundleReader& bundl
                                               " phase, but --phase " + phase + " was asked");
   }
   Stopwatch watch;
-  const BundlePhase maps = computeBundlePhase(bundle, camera);
+  BundlePhaseOptions phase_options;
+  phase_options.order_reference_rad = firmware::orderReference(calib.info());
+  const BundlePhase maps = computeBundlePhase(bundle, camera, phase_options);
   out.phase_ms = watch.lapMs();
+  if (auto warning = firmware::orderDriftWarning(camera, maps.maps.order_residual, calib.info()))
+    out.warnings.push_back(std::move(*warning));
   out.xyz = calib.evaluate(absolutePhase(maps.maps, out.phase));
   out.reconstruct_ms = watch.lapMs();
   out.texture = maps.maps.texture;

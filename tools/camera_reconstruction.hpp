@@ -21,6 +21,7 @@ struct CameraReconstruction {
   cv::Mat texture;  // CV_32F counts
   PhaseSource phase = PhaseSource::Fused;
   double phase_valid_fraction = 0;
+  std::vector<std::string> warnings;  // firmware::orderDriftWarning's
   double phase_ms = 0;
   double reconstruct_ms = 0;
 };

@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "algo/phase_engine.hpp"
+#include "firmware/scan_output.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/images.hpp"
 #include "tools/bundle_phase.hpp"
@@ -77,11 +78,7 @@ void runPhase(const PhaseRequest& request) {
           {"low", bundle.frameCount(request.camera, FringeSet::Low)}}},
         {"own_sets", bundle.info().hasOwnSets(request.camera)},
         {"valid_fraction", maps.valid_fraction},
-        {"order_residual",
-         {{"centre_rad", maps.order_residual.centre_rad},
-          {"spread_rad", maps.order_residual.spread_rad},
-          {"bound_rad", maps.order_residual.bound_rad},
-          {"samples", maps.order_residual.samples}}},
+        {"order_residual", firmware::orderResidualJson(maps.order_residual)},
         {"mean_modulation", std::isfinite(mean_modulation) ? mean_modulation : 0.0},
         {"timings_ms",
          {{"read", phase.read_ms},

@@ -48,13 +48,22 @@ cv::Mat maskedPhase(const cv::Mat& phase, const algo::PhaseStereoResult& stereo,
 
 }  // namespace
 
+void PoseOrderReference::follow(const PlanePose& pose) {
+  if (!value_ && pose.order_residual.samples > 0) value_ = pose.order_residual.centre_rad;
+}
+
 PlanePoseMeasurer::PlanePoseMeasurer(const algo::StereoGeometry& stereo, PlanePoseOptions options)
     : stereo_(stereo), options_(options) {}
 
-PlanePose PlanePoseMeasurer::measure(const formats::CaptureBundleReader& bundle) const {
+PlanePose PlanePoseMeasurer::measure(const formats::CaptureBundleReader& bundle,
+                                     std::optional<double> order_reference) const {
   Stopwatch watch;
-  const BundlePhase main = computeBundlePhase(bundle, "main");
-  const BundlePhase aux = computeBundlePhase(bundle, "aux");
+  BundlePhaseOptions phase_options;
+  phase_options.order_reference_rad = order_reference;
+  const BundlePhase main = computeBundlePhase(bundle, "main", phase_options);
+  if (main.maps.order_residual.samples > 0)
+    phase_options.order_reference_rad = main.maps.order_residual.centre_rad;
+  const BundlePhase aux = computeBundlePhase(bundle, "aux", phase_options);
   const cv::Mat& phase = absolutePhase(main.maps, options_.phase);
   const cv::Mat& phase_aux = absolutePhase(aux.maps, options_.phase);
   const algo::PhaseStereoResult points = stereo_.reconstruct(phase, phase_aux);
@@ -77,6 +86,7 @@ PlanePose PlanePoseMeasurer::measure(const formats::CaptureBundleReader& bundle)
   if (options_.keep_aux_phase) pose.phase_aux = phase_aux.clone();
   pose.main_valid_fraction = main.maps.valid_fraction;
   pose.aux_valid_fraction = aux.maps.valid_fraction;
+  pose.order_residual = main.maps.order_residual;
   pose.ms = watch.elapsedMs();
   return pose;
 }

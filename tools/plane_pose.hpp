@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <string>
 
 #include <opencv2/core.hpp>
@@ -37,8 +38,20 @@ struct PlanePose {
   double plane_rmse_mm = 0;
   double main_valid_fraction = 0;
   double aux_valid_fraction = 0;
+  algo::OrderResidual order_residual;  // main's
   std::size_t target_pixels = 0;
   double ms = 0;
+};
+
+// The centre a series of poses numbers its orders about: the first pose's
+// whose centre was measured.
+class PoseOrderReference {
+ public:
+  std::optional<double> value() const { return value_; }
+  void follow(const PlanePose& pose);
+
+ private:
+  std::optional<double> value_;
 };
 
 class PlanePoseMeasurer {
@@ -46,7 +59,11 @@ class PlanePoseMeasurer {
   PlanePoseMeasurer(const algo::StereoGeometry& stereo, PlanePoseOptions options);
 
   // InputError naming the bundle when it yields too few stereo points for a plane.
-  PlanePose measure(const formats::CaptureBundleReader& bundle) const;
+  // Main's orders are numbered about `order_reference` (the earlier poses'
+  // centre: every pose of a calibration numbers them alike), aux's about main's
+  // centre (both see the same projector, and stereo matches equal phases).
+  PlanePose measure(const formats::CaptureBundleReader& bundle,
+                    std::optional<double> order_reference = std::nullopt) const;
 
  private:
   algo::PhaseStereo stereo_;

@@ -109,6 +109,7 @@ struct Reconstruction {
   cv::Mat texture;
   PhaseSource phase = PhaseSource::Fused;
   double phase_valid_fraction = 0;
+  std::vector<std::string> warnings;
   double phase_ms = 0;
   double reconstruct_ms = 0;
 };
@@ -126,8 +127,12 @@ Reconstruction reconstructQuasi(const ReconstructRequest& request,
   Reconstruction out;
   out.phase = phaseForCalibration(request, calib);
   Stopwatch watch;
-  const BundlePhase main = computeBundlePhase(bundle, "main");
+  BundlePhaseOptions phase_options;
+  phase_options.order_reference_rad = firmware::orderReference(calib.info());
+  const BundlePhase main = computeBundlePhase(bundle, "main", phase_options);
   out.phase_ms = watch.lapMs();
+  if (auto warning = firmware::orderDriftWarning("main", main.maps.order_residual, calib.info()))
+    out.warnings.push_back(std::move(*warning));
   out.xyz = calib.evaluate(absolutePhase(main.maps, out.phase));
   out.reconstruct_ms = watch.lapMs();
   out.texture = main.maps.texture;
@@ -147,7 +152,11 @@ Reconstruction reconstructStereo(const ReconstructRequest& request,
   out.phase = request.phase.empty() ? PhaseSource::Fused : parsePhaseSource(request.phase);
   Stopwatch watch;
   const BundlePhase main = computeBundlePhase(bundle, "main");
-  const BundlePhase aux = computeBundlePhase(bundle, "aux");
+  // Stereo matches equal phases: aux numbers its orders about main's centre.
+  BundlePhaseOptions aux_options;
+  if (main.maps.order_residual.samples > 0)
+    aux_options.order_reference_rad = main.maps.order_residual.centre_rad;
+  const BundlePhase aux = computeBundlePhase(bundle, "aux", aux_options);
   out.phase_ms = watch.lapMs();
   const algo::PhaseStereo matcher(toStereoGeometry(stereo));
   out.xyz =
@@ -190,7 +199,10 @@ void runMerged(const ReconstructRequest& request) {
     nlohmann::json entry = {{"camera", camera},
                             {"phase", toString(r.phase)},
                             {"points", cloud.size()},
-                            {"phase_valid_fraction", r.phase_valid_fraction}};
+                            {"phase_valid_fraction", r.phase_valid_fraction},
+                            {"warnings", r.warnings}};
+    for (const std::string& warning : r.warnings)
+      std::cerr << "warning: " << warning << "\n";
     if (!request.per_camera.empty()) {
       const fs::path file = fs::path(request.per_camera) / ("cloud-" + camera + ".ply");
       formats::writePly(file, cloud);
@@ -239,6 +251,8 @@ void runReconstruct(const ReconstructRequest& request) {
   if (!request.depth.empty()) formats::writeFloatTiff(request.depth, depthOfMap(r.xyz));
   const double write_ms = watch.lapMs();
   const double pixels = r.xyz.total();
+  for (const std::string& warning : r.warnings)
+    std::cerr << "warning: " << warning << "\n";
   if (request.json) {
     nlohmann::json summary = {{"method", request.method},
                               {"phase", toString(r.phase)},
@@ -247,6 +261,7 @@ void runReconstruct(const ReconstructRequest& request) {
                               {"points", cloud.size()},
                               {"point_fraction", static_cast<double>(cloud.size()) / pixels},
                               {"phase_valid_fraction", r.phase_valid_fraction},
+                              {"warnings", r.warnings},
                               {"timings_ms",
                                {{"phase", r.phase_ms},
                                 {"reconstruct", r.reconstruct_ms},

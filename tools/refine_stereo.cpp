@@ -149,6 +149,7 @@ void runRefineStereo(const RefineStereoRequest& request) {
   std::vector<algo::PlanePoseObservation> poses;
   std::vector<std::string> names;
   Stopwatch watch;
+  PoseOrderReference order_reference;
   for (const auto& dir : request.bundles) {
     const formats::CaptureBundleReader bundle(dir);
     requireCamera(bundle, "main");
@@ -156,7 +157,8 @@ void runRefineStereo(const RefineStereoRequest& request) {
     for (const char* camera : {"main", "aux"})
       requireStereoImageSize(request.stereo, stereo, bundle.frameSize(camera),
                              bundle.dir() / camera);
-    PlanePose pose = measurer.measure(bundle);
+    PlanePose pose = measurer.measure(bundle, order_reference.value());
+    order_reference.follow(pose);
     poses.push_back({pose.phase, pose.phase_aux, cv::Mat(), pose.plane});
     names.push_back(pose.bundle);
   }

@@ -194,6 +194,7 @@ void runScan(const ScanRequest& request) {
     summary["points"] = result.figures.points.value_or(0);
     summary["phase"] = toString(result.figures.phase);
     summary["phase_valid_fraction"] = result.figures.phase_valid_fraction;
+    summary["order_residual"] = firmware::orderResidualJson(result.figures.order_residual);
   }
   summary["timings_ms"] = {{"acquire", acquire_ms}, {"total", total.elapsedMs()}};
   if (request.json) {

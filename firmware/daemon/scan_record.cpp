@@ -137,10 +137,21 @@ CameraOutput cameraFrom(const Fields& f) {
   return c;
 }
 
+algo::OrderResidual residualFrom(const Fields& f) {
+  algo::OrderResidual r;
+  f.read("centre_rad", r.centre_rad);
+  f.read("spread_rad", r.spread_rad);
+  f.read("bound_rad", r.bound_rad);
+  f.read("samples", r.samples);
+  return r;
+}
+
 OutputFigures outputFrom(const Fields& f) {
   OutputFigures o;
   if (f.has("phase")) o.phase = parsed(f, "phase", parsePhaseSource);
   f.read("phase_valid_fraction", o.phase_valid_fraction);
+  if (f.has("order_residual"))
+    o.order_residual = residualFrom(Fields(f.at("order_residual"), "order_residual"));
   f.read("points", o.points);
   if (f.has("cameras") || f.has("cloud")) {
     RingOutput ring;
@@ -228,6 +239,7 @@ void to_json(json& j, const ScanRecord& r) {
   if (r.output) {
     j["phase"] = toString(r.output->phase);
     j["phase_valid_fraction"] = r.output->phase_valid_fraction;
+    j["order_residual"] = orderResidualJson(r.output->order_residual);
     if (r.output->points) j["points"] = *r.output->points;
     if (const auto& ring = r.output->ring) {
       json cameras = json::array();

@@ -415,6 +415,10 @@ void ScanService::runJob(Job& job) {
     report = acquire(job, plan, phase, partial);
     ScanResult output =
         writeScanOutput(phase, calibrations, outputOptions(request, calibrations), partial);
+    for (std::string& warning : output.warnings) {
+      logWarn("scan " + job.record.id + ": " + warning);
+      report.warnings.push_back(std::move(warning));
+    }
     done = doneRecord(job, std::move(output), report);
     store_.commit(*done);
   } catch (...) {
@@ -522,6 +526,8 @@ void ScanService::finishDone(const ScanRecord& record, const ScanReport& report)
   step_jitter_ = report.step_jitter;
   trigger_jitter_ = report.trigger_jitter;
   realtime_ = report.realtime;
+  if (record.output && record.output->order_residual.samples > 0)
+    order_residual_ = record.output->order_residual;
   last_error_.reset();
   finishLocked(record);
   logInfo("scan " + record.id + " done in " + std::to_string(*record.duration_s) + " s");
@@ -795,10 +801,12 @@ std::string ScanService::metricsText() const {
               scan_duration_.snapshot());
   w.counter("cylscan_frames_total", "Frames captured by all scans.", frames_total_.value());
   std::optional<drivers::JitterStats::Snapshot> step, trigger;
+  std::optional<algo::OrderResidual> residual;
   {
     std::lock_guard lock(mutex_);
     step = step_jitter_;
     trigger = trigger_jitter_;
+    residual = order_residual_;
   }
   const auto& bounds = defaultLatenessBoundsSeconds();
   w.histogram("cylscan_step_lateness_seconds",
@@ -808,6 +816,17 @@ std::string ScanService::metricsText() const {
               foldJitter(trigger.value_or(drivers::JitterStats::Snapshot{}), bounds));
   w.gauge("cylscan_scans_stored", "Scans in the data directory.",
           static_cast<double>(store_.count()));
+  if (residual) {
+    w.gauge("cylscan_order_residual_centre_radians",
+            "The last scan's order-residual centre: the low set's phase offset times -R.",
+            residual->centre_rad);
+    w.gauge("cylscan_order_residual_spread_radians",
+            "The robust spread of the last scan's order residuals about their centre.",
+            residual->spread_rad);
+    w.gauge("cylscan_order_residual_bound_radians",
+            "The residual bound beyond which the last scan's orders were not trusted.",
+            residual->bound_rad);
+  }
   return w.text();
 }
 

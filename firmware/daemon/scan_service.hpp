@@ -156,6 +156,7 @@ class ScanService final : public HeadService {
   bool worker_done_ = false;
   std::optional<std::string> last_error_;
   bool realtime_ = false;
+  std::optional<algo::OrderResidual> order_residual_;  // the last done scan's
   std::string last_id_;
   std::map<std::string, nlohmann::json, std::less<>>
       calibration_info_;                     // by camera, when installed

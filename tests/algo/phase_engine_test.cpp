@@ -351,6 +351,40 @@ TEST(PhaseEngine, AnyOffsetBetweenTheSetsUnwrapsTheSame) {
   }
 }
 
+// A head whose centre sits near ±π measures it on either side from scan to
+// scan. Taken within ±π of a reference (the calibration's), every scan numbers
+// its orders as the reference scan did; without one, a scan across ±π numbers
+// them one off, which moves the seam where K wraps and breaks a calibration.
+TEST(PhaseEngine, AReferenceKeepsTheOrdersAcrossPi) {
+  const Scene clean = testing::rampScene(smallSize(), 110, 80);
+  for (bool fixed : {true, false}) {
+    PhaseOptions o = fixed ? fixedOptions() : referenceOptions();
+    const std::string path = fixed ? "fixed" : "reference";
+    Scene below = clean, above = clean;
+    // Centres −9δ of π − 0.05 and π + 0.05 (the latter measured as −π + 0.05).
+    below.low_offset = cv::Mat(smallSize(), CV_64F, cv::Scalar(-(std::numbers::pi - 0.05) / 9));
+    above.low_offset = cv::Mat(smallSize(), CV_64F, cv::Scalar(-(std::numbers::pi + 0.05) / 9));
+    const PhaseMaps first = runScan(below, deviceHigh(), deviceLow(), o, 0.5);
+    ASSERT_NEAR(first.order_residual.centre_rad, std::numbers::pi - 0.05, 0.01) << path;
+    const PhaseMaps unreferenced = runScan(above, deviceHigh(), deviceLow(), o, 0.5);
+    EXPECT_NEAR(unreferenced.order_residual.centre_rad, -std::numbers::pi + 0.05, 0.01) << path;
+    o.order_reference_rad = first.order_residual.centre_rad;
+    const PhaseMaps tied = runScan(above, deviceHigh(), deviceLow(), o, 0.5);
+    EXPECT_NEAR(tied.order_residual.centre_rad, std::numbers::pi + 0.05, 0.01) << path;
+    EXPECT_EQ(tied.valid_fraction, 1.0) << path;
+    int same_tied = 0, same_unreferenced = 0;
+    for (int y = 0; y < smallSize().height; ++y) {
+      for (int x = 0; x < smallSize().width; ++x) {
+        const int k = first.fringe_order.at<std::int16_t>(y, x);
+        same_tied += tied.fringe_order.at<std::int16_t>(y, x) == k;
+        same_unreferenced += unreferenced.fringe_order.at<std::int16_t>(y, x) == k;
+      }
+    }
+    EXPECT_EQ(same_tied, smallSize().area()) << path;
+    EXPECT_EQ(same_unreferenced, 0) << path << ": the unreferenced scan should be one order off";
+  }
+}
+
 TEST(PhaseEngine, SaturationLevelOptionIsHonoured) {
   // 16-bit frames holding 12-bit counts with a lower saturation level.
   const Scene scene = testing::rampScene(smallSize(), 2000, 1500);  // peaks at 3500

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include <utility>
 
 namespace cylscan::algo {
 namespace {
@@ -74,6 +75,44 @@ TEST(TwoWavelengthUnwrapper, ResidualMeasuresOrderInconsistency) {
   const FixedOrders f = u.unwrap(toBinary(phi_h), toBinary(phi_l));
   EXPECT_NEAR(u.fixedResidualToRadians(f.residual), expected, 1e-3);
   EXPECT_NEAR(u.fixedResidualToRadians(u.fixedResidualBound(1.0)), 1.0, 1e-6);
+}
+
+// A centre taken near a calibration's may lie up to a whole turn from zero:
+// the integer form must still agree with the reference on every order, for
+// ratios from just above 2 (two orders, one low order) up to the device's.
+TEST(TwoWavelengthUnwrapper, CentresUpToATurnAwayAgreeWithTheReference) {
+  for (const auto& [high, low] : {std::pair{5.0, 5.625}, {3.0, 3.25}, {4.0, 7.0}, {2.0, 3.9}}) {
+    TwoWavelengthUnwrapper u(high, low);
+    FixedUnwrapParams p = u.fixedParams();
+    const int bits = 16 + p.shift;
+    // ratio_q is R rounded to 2^-shift (exact for the device's R = 9): over
+    // φeq < 2π that moves the residual by less than π·2^-shift.
+    const double tolerance = std::numbers::pi * std::ldexp(1.0, -p.shift) + 1e-9;
+    int checked = 0;
+    for (int c = -16; c < 16; ++c) {
+      p.residual_centre = static_cast<std::int32_t>(std::ldexp(c / 16.0, bits));
+      const double centre_rad = c / 16.0 * kTwoPi;
+      for (int i = 0; i < 4000; ++i) {
+        const double phi_h = (i * 0.7548776662 - std::floor(i * 0.7548776662)) * kTwoPi;
+        const double phi_l = (i * 0.5698402910 - std::floor(i * 0.5698402910)) * kTwoPi;
+        const BinaryAngle bh = toBinary(phi_h), bl = toBinary(phi_l);
+        const ReferenceOrders r =
+            u.unwrap(bh * kTwoPi / 65536.0, bl * kTwoPi / 65536.0, centre_rad);
+        // Near ±π the two forms may round to different neighbours: skip those.
+        if (std::abs(std::abs(r.residual_rad) - std::numbers::pi) < tolerance) continue;
+        const FixedOrders f = unwrapFixed(p, bh, bl);
+        ASSERT_EQ(f.high, r.high) << high << "/" << low << " centre " << c << "/16 turn, " << i;
+        ASSERT_EQ(f.low, r.low) << high << "/" << low << " centre " << c << "/16 turn, " << i;
+        ASSERT_GE(f.high, 0);
+        ASSERT_LT(f.high, u.ordersHigh());
+        ASSERT_GE(f.low, 0);
+        ASSERT_LT(f.low, u.ordersLow());
+        ASSERT_NEAR(u.fixedResidualToRadians(f.residual), r.residual_rad, tolerance);
+        ++checked;
+      }
+    }
+    EXPECT_GT(checked, 32 * 3900);
+  }
 }
 
 TEST(TwoWavelengthUnwrapper, RejectsBadPeriods) {

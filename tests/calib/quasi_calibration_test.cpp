@@ -300,6 +300,7 @@ QuasiCalibration smallCalibration() {
   }
   QuasiCalibration calibration = fitter.fit();
   calibration.setResidualSummary(0.085f, 39.304f);
+  calibration.setOrderResidual(-2.75f, 0.125f);
   return calibration;
 }
 
@@ -311,7 +312,7 @@ bool sameBits(const cv::Mat& a, const cv::Mat& b) {
 TEST(QuasiCalibrationFile, RoundTripIsBitExact) {
   const QuasiCalibration original = smallCalibration();
   const std::vector<std::byte> bytes = original.serialize();
-  EXPECT_EQ(bytes.size(), 64u + 24 * 16 + 24 * 16 * 56u);
+  EXPECT_EQ(bytes.size(), 72u + 24 * 16 + 24 * 16 * 56u);
   const QuasiCalibration loaded = QuasiCalibration::deserialize(bytes);
   EXPECT_EQ(loaded.serialize(), bytes);
   EXPECT_EQ(loaded.size(), original.size());
@@ -320,6 +321,8 @@ TEST(QuasiCalibrationFile, RoundTripIsBitExact) {
   EXPECT_EQ(loaded.info().min_poses, 6u);
   EXPECT_EQ(loaded.info().pooled_rmse_mm, 0.085f);
   EXPECT_EQ(loaded.info().sensitivity_mm_per_rad, 39.304f);
+  EXPECT_EQ(loaded.info().order_centre_rad, -2.75f);
+  EXPECT_EQ(loaded.info().order_spread_rad, 0.125f);
   EXPECT_FALSE(loaded.valid(1, 1));
   EXPECT_EQ(std::memcmp(&loaded.pixel(5, 7), &original.pixel(5, 7), sizeof(PixelPolynomial)), 0);
 
@@ -365,8 +368,8 @@ TEST(QuasiCalibrationFile, RejectsEveryCorruption) {
   expectRejected(magic, "bad magic");
 
   std::vector<std::byte> version = good;
-  version[8] = std::byte{2};
-  expectRejected(version, "unsupported version 2");
+  version[8] = std::byte{3};
+  expectRejected(version, "unsupported version 3");
 
   std::vector<std::byte> model = good;
   model[24] = std::byte{2};
@@ -385,6 +388,49 @@ TEST(QuasiCalibrationFile, RejectsEveryCorruption) {
     EXPECT_THAT(e.what(), HasSubstr("made for 24x16 images"));
     EXPECT_THAT(e.what(), HasSubstr("160x128"));
   }
+}
+
+// CRC-32 (IEEE, reflected), as docs/formats.md defines the file's checksum.
+std::uint32_t crc32(std::span<const std::byte> a, std::span<const std::byte> b) {
+  std::uint32_t crc = 0xffffffffu;
+  for (std::span<const std::byte> part : {a, b}) {
+    for (std::byte byte : part) {
+      crc ^= std::to_integer<std::uint32_t>(byte);
+      for (int k = 0; k < 8; ++k)
+        crc = (crc & 1u) ? 0xEDB88320u ^ (crc >> 1) : crc >> 1;
+    }
+  }
+  return crc ^ 0xffffffffu;
+}
+
+// Files written before the order-residual centre was recorded (version 1, a
+// 64-byte header) still load, with the centre unknown.
+TEST(QuasiCalibrationFile, VersionOneLoadsWithoutAnOrderCentre) {
+  const std::vector<std::byte> v2 = smallCalibration().serialize();
+  std::vector<std::byte> v1(v2.begin(), v2.begin() + 64);
+  v1.insert(v1.end(), v2.begin() + 72, v2.end());
+  v1[8] = std::byte{1};
+  v1[12] = std::byte{64};
+  const std::uint32_t crc = crc32(std::span(v1).first(60), std::span(v1).subspan(64));
+  for (int i = 0; i < 4; ++i)
+    v1[60 + i] = static_cast<std::byte>((crc >> (8 * i)) & 0xffu);
+  const QuasiCalibration loaded = QuasiCalibration::deserialize(v1);
+  EXPECT_TRUE(std::isnan(loaded.info().order_centre_rad));
+  EXPECT_TRUE(std::isnan(loaded.info().order_spread_rad));
+  EXPECT_EQ(loaded.info().pooled_rmse_mm, 0.085f);
+  const QuasiCalibration current = QuasiCalibration::deserialize(v2);
+  cv::Mat phase(current.size(), CV_32FC1);
+  cv::randu(phase, 34.0, 36.0);
+  EXPECT_TRUE(sameBits(loaded.evaluate(phase), current.evaluate(phase)));
+  EXPECT_TRUE(
+      sameBits(QuasiCalibrationView::fromBytes(v1).evaluate(phase), current.evaluate(phase)));
+  // Saved again, it is a version-2 file with the centre unknown.
+  const std::vector<std::byte> again = loaded.serialize();
+  EXPECT_EQ(again.size(), v2.size());
+  EXPECT_TRUE(std::isnan(QuasiCalibration::deserialize(again).info().order_centre_rad));
+  // A version-1 file is checked like any other.
+  v1[100] ^= std::byte{0x01};
+  expectRejected(v1, "checksum mismatch");
 }
 
 TEST(QuasiCalibrationFile, InPlaceViewNeedsAlignment) {

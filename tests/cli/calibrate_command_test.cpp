@@ -110,15 +110,19 @@ void writeBlankBoardSet(const fs::path& dir, int pairs) {
   }
 }
 
-TEST(CalibrateStereoCommand, TooFewUsablePairsFailsAndWritesNothing) {
+// A board found in no image at all is most often a checkerboard.json that
+// counts squares: bad input, in one short line that names the file.
+TEST(CalibrateStereoCommand, ABoardFoundNowhereIsBadInputNamingCheckerboardJson) {
   TempDir tmp;
   writeBlankBoardSet(tmp.path() / "board", 7);
   const fs::path out = tmp.path() / "stereo.yaml";
   const auto run = runTool("calibrate-stereo --board " + (tmp.path() / "board").string() +
                            " --out " + out.string());
-  EXPECT_EQ(run.exit_code, 1) << run.output;
-  EXPECT_NE(run.output.find("only 0 usable"), std::string::npos) << run.output;
-  EXPECT_NE(run.output.find("corners not found in main and aux"), std::string::npos) << run.output;
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("checkerboard.json"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("9 x 6 inner corners"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("none of the 7 pairs"), std::string::npos) << run.output;
+  EXPECT_LT(run.output.size(), 400u) << run.output;
   EXPECT_FALSE(fs::exists(out));
 }
 

@@ -21,8 +21,10 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <numbers>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -30,6 +32,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "algo/quasi_calibration.hpp"
 #include "cli_support.hpp"
 #include "formats/point_cloud.hpp"
 #include "formats/stereo_calibration.hpp"
@@ -169,7 +172,20 @@ class EndToEnd : public ::testing::Test {
               << summary.value("timings_ms", json::object()).dump() << "\n";
     EXPECT_LT(summary.at("pooled_rmse_mm").get<double>(), 0.1);
     EXPECT_GT(summary.at("valid_fraction").get<double>(), 0.95);
+    // The file records the centre its poses' orders were numbered about: the
+    // first pose's, and every pose measured its own within a small spread of it.
+    ASSERT_TRUE(summary.at("order_centre_rad").is_number()) << summary.dump();
+    const double centre = summary.at("order_centre_rad").get<double>();
+    std::ifstream qcal(out("calib.qcal"), std::ios::binary);
+    std::vector<char> bytes((std::istreambuf_iterator<char>(qcal)), {});
+    EXPECT_NEAR(algo::QuasiCalibration::deserialize(std::as_bytes(std::span(bytes)))
+                    .info()
+                    .order_centre_rad,
+                centre, 1e-6);
     for (const auto& pose : summary.at("poses")) {
+      const json& residual = pose.at("order_residual");
+      EXPECT_GT(residual.at("samples").get<int>(), 0) << pose.dump();
+      EXPECT_LT(std::abs(residual.at("centre_rad").get<double>() - centre), 0.2) << pose.dump();
       EXPECT_LT(pose.at("rmse_mm").get<double>(), 0.15) << pose.dump();
       EXPECT_LT(pose.at("plane_fit_rmse_mm").get<double>(), 0.15) << pose.dump();
     }

@@ -47,7 +47,8 @@ ScanRecord done() {
   r.duration_s = 8.5;
   r.frames_done = 10;
   r.files = {"cloud.ply", "depth.tiff", "texture.png", "phase.png", "depth.png"};
-  r.output = OutputFigures{PhaseSource::Fused, 0.625, std::size_t{12800}, std::nullopt};
+  r.output = OutputFigures{PhaseSource::Fused, 0.625, algo::OrderResidual{-1.25, 0.0625, 1.5, 8000},
+                           std::size_t{12800}, std::nullopt};
   r.acquisition = acquisition();
   r.bundle = "bundle";
   return r;
@@ -90,6 +91,8 @@ TEST(ScanRecord, ADoneScanAddsTheOutputsAndTheAcquisitionsFigures) {
     "created": "2026-12-01T16:01:02Z", "finished": "2026-12-01T16:01:11Z", "duration_s": 8.5,
     "options": {"frames": 5, "mode": "stop"}, "frames": 10, "frames_done": 10,
     "calibrated": true, "phase": "fused", "phase_valid_fraction": 0.625,
+    "order_residual": {"centre_rad": -1.25, "spread_rad": 0.0625, "bound_rad": 1.5,
+                       "samples": 8000},
     "files": ["cloud.ply", "depth.tiff", "texture.png", "phase.png", "depth.png"],
     "points": 12800,
     "retries": 1, "homed": true, "realtime": false, "board_seconds": 38.25,
