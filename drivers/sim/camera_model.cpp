@@ -31,6 +31,10 @@ void validate(const CameraParams& p) {
   check(p.trigger_latency_us >= 0, p, "trigger_latency_us", "must be >= 0");
   check(p.readout_us >= 0, p, "readout_us", "must be >= 0");
   check(p.frame_rate_hz > 0, p, "frame_rate_hz", "must be > 0");
+  check(p.response_gamma >= 0.2 && p.response_gamma <= 5, p, "response_gamma",
+        "must be in [0.2, 5]");
+  check(p.line_time_us >= 0 && p.line_time_us * p.height <= 1e6, p, "line_time_us",
+        "must be >= 0 and read the frame within 1 s");
 }
 
 std::array<double, 3> lookAtRotationDeg(const Vec3& position, const Vec3& target, double roll_deg) {
@@ -108,6 +112,8 @@ CameraParams CameraModel::scaledTo(int width, int height) const {
   p.fy *= sy;
   p.cx = (params_.cx + 0.5) * sx - 0.5;
   p.cy = (params_.cy + 0.5) * sy - 0.5;
+  // The same rolling time from the first row to the last.
+  p.line_time_us = params_.line_time_us / sy;
   return p;
 }
 

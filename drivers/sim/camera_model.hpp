@@ -33,6 +33,13 @@ struct CameraParams {
   double trigger_latency_us = 20.0;  // trigger edge → start of exposure
   double readout_us = 8000.0;        // end of exposure → frame delivered
   double frame_rate_hz = 30.0;       // free-running mode
+  // The sensor's response: counts = full scale · (linear / full scale)^gamma
+  // (1: linear; an 8-bit camera left in an sRGB-like mode is near 0.45).
+  double response_gamma = 1.0;
+  // Rolling shutter: row v starts its exposure v · line_time_us after row 0
+  // (0: a global shutter). Under continuous motion each row sees the pattern
+  // at its own stage angle.
+  double line_time_us = 0.0;
 
   bool operator==(const CameraParams&) const = default;
 };

@@ -36,6 +36,24 @@ HeadConfig defaultHeadConfig() {
   return c;
 }
 
+HeadConfig idealOf(HeadConfig c) {
+  const ProjectorParams projector;
+  c.projector.low_half_offset_deg = projector.low_half_offset_deg;
+  c.projector.slot_pitch_error_deg = projector.slot_pitch_error_deg;
+  c.projector.slot_width_error = projector.slot_width_error;
+  c.projector.source_warmup_drop = projector.source_warmup_drop;
+  c.projector.source_warmup_tau_s = projector.source_warmup_tau_s;
+  const StageParams stage;
+  c.stage.backlash_deg = stage.backlash_deg;
+  c.stage.home_repeatability_deg = stage.home_repeatability_deg;
+  const CameraParams camera;
+  for (CameraParams& cam : c.cameras) {
+    cam.response_gamma = camera.response_gamma;
+    cam.line_time_us = camera.line_time_us;
+  }
+  return c;
+}
+
 void validate(const HeadConfig& c) {
   validate(c.projector);
   validate(c.stage);
@@ -130,6 +148,9 @@ ProjectorParams readProjector(TableReader r) {
             "elevation_max_deg", "must satisfy -90 < elevation_min_deg < elevation_max_deg < 90");
   p.source_level = r.nonNegative("source_level", p.source_level);
   p.reference_distance_mm = r.positive("reference_distance_mm", p.reference_distance_mm);
+  p.source_warmup_drop = r.nonNegative("source_warmup_drop", p.source_warmup_drop);
+  r.require(p.source_warmup_drop < 0.5, "source_warmup_drop", "must be < 0.5");
+  p.source_warmup_tau_s = r.positive("source_warmup_tau_s", p.source_warmup_tau_s);
   r.finish();
   validateAt(p, r);
   return p;
@@ -154,6 +175,12 @@ StageParams readStage(TableReader r) {
   s.settle_tau_ms = r.positive("settle_tau_ms", s.settle_tau_ms);
   s.settle_freq_hz = r.positive("settle_freq_hz", s.settle_freq_hz);
   s.initial_deg = r.number("initial_deg", s.initial_deg);
+  s.backlash_deg = r.nonNegative("backlash_deg", s.backlash_deg);
+  r.require(s.backlash_deg < 1, "backlash_deg", "must be < 1");
+  s.home_repeatability_deg = r.nonNegative("home_repeatability_deg", s.home_repeatability_deg);
+  r.require(s.home_repeatability_deg < s.home_window_deg / 4, "home_repeatability_deg",
+            "must be < home_window_deg / 4");
+  s.home_seed = static_cast<std::uint64_t>(r.integer("home_seed", 1));
   r.finish();
   validateAt(s, r);
   return s;
@@ -208,6 +235,11 @@ CameraParams readCamera(TableReader r, const CameraParams& defaults) {
   c.trigger_latency_us = r.nonNegative("trigger_latency_us", c.trigger_latency_us);
   c.readout_us = r.nonNegative("readout_us", c.readout_us);
   c.frame_rate_hz = r.positive("frame_rate_hz", c.frame_rate_hz);
+  c.response_gamma = r.positive("response_gamma", c.response_gamma);
+  r.require(c.response_gamma >= 0.2 && c.response_gamma <= 5, "response_gamma",
+            "must be in [0.2, 5]");
+  c.line_time_us = r.nonNegative("line_time_us", c.line_time_us);
+  r.require(c.line_time_us * c.height <= 1e6, "line_time_us", "must read the frame within 1 s");
   r.finish();
   validateAt(c, r);
   return c;

@@ -66,8 +66,13 @@ struct HeadConfig {
   bool operator==(const HeadConfig&) const = default;
 };
 
-// The built-in head (the same values as board/sim/head.toml).
+// The built-in head: board/sim/head.toml's values without its imperfections
+// (the ideal head the sim's own unit tests and inline test heads start from).
 HeadConfig defaultHeadConfig();
+// `config` with every imperfection of a real head set to none: the low half's
+// misalignment, slot errors, LED warm-up, backlash, homing repeatability,
+// gamma and rolling shutter (docs/virtual-head.md).
+HeadConfig idealOf(HeadConfig config);
 
 // Reads a head file; every fault throws ConfigError naming the file, line and key.
 HeadConfig loadHeadConfig(const std::filesystem::path& file);

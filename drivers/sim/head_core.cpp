@@ -114,7 +114,7 @@ void HeadCore::drive(LineRole role, bool active) {
   if (event || stage.edgeCount() != edges_before) clock.notifyEvent();
 }
 
-bool HeadCore::lightAt(Nanoseconds t) const {
+std::uint64_t HeadCore::lightSampleAt(Nanoseconds t) const {
   std::uint64_t lo = light_history_.oldest(), hi = light_history_.count();
   while (hi - lo > 1) {
     const std::uint64_t mid = lo + (hi - lo) / 2;
@@ -124,7 +124,20 @@ bool HeadCore::lightAt(Nanoseconds t) const {
       hi = mid;
     }
   }
-  return light_history_.at(lo).on;
+  return lo;
+}
+
+bool HeadCore::lightAt(Nanoseconds t) const {
+  return light_history_.at(lightSampleAt(t)).on;
+}
+
+std::optional<HeadCore::Nanoseconds> HeadCore::lightOnSince(Nanoseconds t) const {
+  std::uint64_t i = lightSampleAt(t);
+  if (!light_history_.at(i).on) return std::nullopt;
+  // Writes that left the light on are not edges: go back to the first of them.
+  while (i > light_history_.oldest() && light_history_.at(i - 1).on)
+    --i;
+  return light_history_.at(i).time;
 }
 
 std::shared_ptr<const PixelGeometry> HeadCore::geometryFor(int camera) {
@@ -168,6 +181,10 @@ std::string VirtualCamera::name() const {
 
 VirtualCamera::Nanoseconds VirtualCamera::exposure() const {
   return Nanoseconds{std::llround(params_.exposure_us * 1e3)};
+}
+
+VirtualCamera::Nanoseconds VirtualCamera::rolling() const {
+  return Nanoseconds{std::llround(params_.line_time_us * 1e3 * (params_.height - 1))};
 }
 
 void VirtualCamera::configure(const drivers::CameraConfig& config) {
@@ -256,7 +273,7 @@ std::optional<drivers::Frame> VirtualCamera::waitLinkFrame(Nanoseconds timeout) 
   const Nanoseconds deadline = core_.clock.now() + std::max(timeout, Nanoseconds{0});
   const Nanoseconds period{std::llround(1e9 / params_.frame_rate_hz)};
   const Nanoseconds readout{std::llround(params_.readout_us * 1e3)};
-  const Nanoseconds transfer = exposure() + readout;
+  const Nanoseconds transfer = exposure() + rolling() + readout;
   for (;;) {
     // The first link frame not delivered yet.
     const Nanoseconds since = core_.clock.now() - stream_origin_ - transfer;
@@ -317,7 +334,9 @@ std::optional<drivers::Frame> VirtualCamera::waitFrame(Nanoseconds timeout) {
       core_.clock.waitForEvent(epoch, deadline);
       continue;
     }
-    const Nanoseconds ready = p->start + exposure() + readout + Nanoseconds{delay_ns_.load()};
+    // The last row ends its exposure `rolling` after the first, then the frame is read out.
+    const Nanoseconds ready =
+        p->start + exposure() + rolling() + readout + Nanoseconds{delay_ns_.load()};
     if (ready > deadline) {
       core_.clock.sleepUntil(deadline);
       return std::nullopt;
@@ -338,10 +357,13 @@ cv::Mat VirtualCamera::renderExposure(const Pending& p) {
   Exposure e;
   const int n = core_.config.render.exposure_samples;
   const Nanoseconds exp = exposure();
+  const Nanoseconds rolling = this->rolling();
   for (int j = 0; j < n; ++j) {
+    const auto k = static_cast<std::size_t>(j);
     const Nanoseconds t = p.start + exp * (2 * j + 1) / (2 * n);
-    e.stage_deg[static_cast<std::size_t>(j)] = core_.stage.angleAt(t);
-    e.light[static_cast<std::size_t>(j)] = core_.lightAt(t);
+    e.stage_deg[k] = core_.stage.angleAt(t);
+    e.stage_deg_last_row[k] = core_.stage.angleAt(t + rolling);
+    e.light[k] = core_.lightAt(t);
   }
   e.samples = n;
   bool uniform = true;
@@ -350,7 +372,21 @@ cv::Mat VirtualCamera::renderExposure(const Pending& p) {
     uniform =
         uniform && std::abs(e.stage_deg[k] - e.stage_deg[0]) < 1e-9 && e.light[k] == e.light[0];
   }
+  for (int j = 0; j < n; ++j) {
+    const auto k = static_cast<std::size_t>(j);
+    uniform = uniform && std::abs(e.stage_deg_last_row[k] - e.stage_deg[k]) < 1e-9;
+  }
   if (uniform) e.samples = 1;
+  e.rolling = false;
+  for (int j = 0; j < e.samples; ++j) {
+    const auto k = static_cast<std::size_t>(j);
+    e.rolling = e.rolling || std::abs(e.stage_deg_last_row[k] - e.stage_deg[k]) >= 1e-9;
+  }
+  const Nanoseconds middle = p.start + exp / 2;
+  if (const std::optional<Nanoseconds> on = core_.lightOnSince(middle))
+    e.source_gain =
+        core_.projector.params().warmupFactor(static_cast<double>((middle - *on).count()) * 1e-9);
+  e.response_gamma = params_.response_gamma;
   e.exposure_us = params_.exposure_us;
   e.reference_exposure_us = core_.config.noise.reference_exposure_us;
   e.gain = params_.gain;

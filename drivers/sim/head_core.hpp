@@ -42,6 +42,8 @@ struct HeadCore {
   // Real-time path: a line's device-side level changed (no allocation, no lock).
   void drive(LineRole role, bool device_active);
   bool lightAt(Nanoseconds t) const;
+  // When the light came on, if it is on at t.
+  std::optional<Nanoseconds> lightOnSince(Nanoseconds t) const;
   const LineConfig& line(LineRole role) const;
   std::optional<LineRole> roleOf(std::string_view name) const;
   int cameraIndex(std::string_view name) const;  // throws std::invalid_argument
@@ -69,6 +71,8 @@ struct HeadCore {
     bool on = false;
   };
   HistoryRing<LightSample, 4096> light_history_;
+  // The index of the last light sample at or before t.
+  std::uint64_t lightSampleAt(Nanoseconds t) const;
   mutable std::mutex scene_mutex_;
   Scene scene_;
   std::vector<std::shared_ptr<const PixelGeometry>> geometry_;
@@ -106,6 +110,8 @@ class VirtualCamera final : public drivers::Camera {
   drivers::Frame render(const Pending& p);
   void tearIfAsked(cv::Mat& image);  // corruptNextFrame()
   Nanoseconds exposure() const;
+  // A rolling shutter's delay from the first row's exposure to the last's.
+  Nanoseconds rolling() const;
   // A Continuous stream: link frame k starts at the stream's origin + k
   // periods (1 / frame_rate_hz) and is delivered exposure + readout later.
   // Free-running, it is an exposure of its own; triggered, it shows the

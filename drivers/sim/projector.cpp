@@ -38,6 +38,9 @@ void validate(const ProjectorParams& p) {
   check(p.theta_low_deg > 0 && p.theta_low_deg < 90, "theta_low_deg", "must be in (0, 90)");
   check(p.theta_low_deg != p.theta_high_deg, "theta_low_deg", "must differ from theta_high_deg");
   check(p.duty > 0 && p.duty < 1, "duty", "must be in (0, 1)");
+  check(p.source_warmup_drop >= 0 && p.source_warmup_drop < 0.5, "source_warmup_drop",
+        "must be in [0, 0.5)");
+  check(p.source_warmup_tau_s > 0, "source_warmup_tau_s", "must be > 0");
   check(p.blur_width_deg >= 0 && p.blur_width_deg < 10, "blur_width_deg", "must be in [0, 10)");
   check(p.eccentricity_mm >= 0 && p.eccentricity_mm < p.radius_mm / 2, "eccentricity_mm",
         "must be in [0, radius_mm / 2)");
@@ -64,16 +67,16 @@ CylindricalProjector::CylindricalProjector(const ProjectorParams& params) : para
   const double th = params_.theta_high_deg, tl = params_.theta_low_deg;
   std::mt19937_64 rng(params_.slot_error_seed);
   std::normal_distribution<double> unit(0.0, 1.0);
-  const auto slot = [&](double centre, double period) {
+  const auto add_slot = [&](double centre, double period) {
     const double c = centre + params_.slot_pitch_error_deg * unit(rng);
     const double w =
         period * std::clamp(params_.duty + params_.slot_width_error * unit(rng), 0.05, 0.95);
     slots_.push_back({c - w / 2, c + w / 2});
   };
   for (int m = 0; m * th < 180.0 - 1e-9; ++m)
-    slot(m * th, th);
+    add_slot(m * th, th);
   for (int m = 0; 180.0 + m * tl < 360.0 - 1e-9; ++m)
-    slot(180.0 + params_.low_half_offset_deg + m * tl, tl);
+    add_slot(180.0 + params_.low_half_offset_deg + m * tl, tl);
 
   table_.assign(kTableSize + 1, 0.0f);
   const double reach = kernelReach(params_.blur_kernel, params_.blur_width_deg);

@@ -47,6 +47,16 @@ struct ProjectorParams {
   // distance, fully open slot, reference exposure, as a fraction of full well.
   double source_level = 1.05;
   double reference_distance_mm = 580.0;
+  // The LED warms up after it is switched on and its output falls:
+  // level · (1 − drop · (1 − exp(−t_on / tau))), t_on the time since the light
+  // came on. So the frames of a set see a slowly falling intensity.
+  double source_warmup_drop = 0.0;
+  double source_warmup_tau_s = 20.0;
+
+  // The source level `seconds_on` after the light came on, as a factor.
+  double warmupFactor(double seconds_on) const {
+    return 1.0 - source_warmup_drop * (1.0 - std::exp(-seconds_on / source_warmup_tau_s));
+  }
 
   bool operator==(const ProjectorParams&) const = default;
 };

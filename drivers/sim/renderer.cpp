@@ -164,6 +164,7 @@ struct FrameKernel {
   bool eccentric, any_light;
   double sx, sz, r2;
   double electrons_per_unit, counts_per_electron, max_count;
+  double source_gain, gamma;
   float read_var, noise_scale;
   const NoiseTable* noise;
   std::uint64_t key;
@@ -203,16 +204,17 @@ struct FrameKernel {
         for (int s = 0; s < k.samples; ++s) {
           if (k.light[static_cast<std::size_t>(s)]) t += lookup(k.table, k.wallAngle(k.rays[i], s));
         }
-        level += d * t * inv_samples;
+        level += d * t * inv_samples * k.source_gain;
       }
       double electrons = level * k.electrons_per_unit;
       if (k.noise_scale > 0) {
         const float sigma = k.noise_scale * std::sqrt(static_cast<float>(electrons) + k.read_var);
         electrons += sigma * k.noise->sample(k.key, i);
       }
-      // Rounds (the value is >= 0 after the clamp).
-      out[u] =
-          static_cast<Out>(std::clamp(electrons * k.counts_per_electron + 0.5, 0.0, k.max_count));
+      double counts = std::clamp(electrons * k.counts_per_electron, 0.0, k.max_count);
+      if (k.gamma != 1.0) counts = k.max_count * std::pow(counts / k.max_count, k.gamma);
+      // Rounds half up (counts >= 0), never past full scale.
+      out[u] = static_cast<Out>(std::min(counts + 0.5, k.max_count));
     }
   }
 };
@@ -253,13 +255,28 @@ cv::Mat renderFrame(const PixelGeometry& g, const CylindricalProjector& projecto
   k.noise_scale = static_cast<float>(e.noise_scale);
   k.noise = &noise;
   k.key = e.noise_key;
+  k.source_gain = e.source_gain;
+  k.gamma = e.response_gamma;
   parallelRows(g.height, threadCount(threads), [&](int begin, int end) {
+    FrameKernel row_kernel = k;
     for (int v = begin; v < end; ++v) {
+      if (e.rolling) {
+        // This row's exposure: its own stage angles between the first row's and the last's.
+        const double f = g.height > 1 ? static_cast<double>(v) / (g.height - 1) : 0.0;
+        for (int s = 0; s < e.samples; ++s) {
+          const auto i = static_cast<std::size_t>(s);
+          const double rho = e.stage_deg[i] + f * (e.stage_deg_last_row[i] - e.stage_deg[i]);
+          row_kernel.rho[i] = rho;
+          const auto c = projector.centreOffset(rho);
+          row_kernel.cx[i] = c.x;
+          row_kernel.cz[i] = c.z;
+        }
+      }
       const std::size_t first = static_cast<std::size_t>(v) * static_cast<std::size_t>(g.width);
       if (deep) {
-        k.row(first, g.width, out.ptr<std::uint16_t>(v));
+        row_kernel.row(first, g.width, out.ptr<std::uint16_t>(v));
       } else {
-        k.row(first, g.width, out.ptr<std::uint8_t>(v));
+        row_kernel.row(first, g.width, out.ptr<std::uint8_t>(v));
       }
     }
   });

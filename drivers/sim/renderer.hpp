@@ -64,6 +64,12 @@ struct Exposure {
   static constexpr int kMaxSamples = 8;
   std::array<double, kMaxSamples> stage_deg{};  // stage angle at each sub-sample of the exposure
   std::array<bool, kMaxSamples> light{};        // source on at each sub-sample
+  // A rolling shutter: the stage angle at each sub-sample of the last row's
+  // exposure; rows between take theirs linearly (used when `rolling`).
+  std::array<double, kMaxSamples> stage_deg_last_row{};
+  bool rolling = false;
+  double source_gain = 1.0;     // the source's level now, as a factor (LED warm-up)
+  double response_gamma = 1.0;  // the sensor's response curve (CameraParams)
   int samples = 1;
   double exposure_us = 10000;
   double reference_exposure_us = 10000;

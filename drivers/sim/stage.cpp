@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "drivers/sim/stage.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -32,19 +33,31 @@ void validate(const StageParams& p) {
   check(p.settle_amplitude_deg >= 0, "settle_amplitude_deg", "must be >= 0");
   check(p.settle_tau_ms > 0, "settle_tau_ms", "must be > 0");
   check(p.settle_freq_hz > 0, "settle_freq_hz", "must be > 0");
+  check(p.backlash_deg >= 0 && p.backlash_deg < 1, "backlash_deg", "must be in [0, 1)");
+  check(p.home_repeatability_deg >= 0 && p.home_repeatability_deg < p.home_window_deg / 4,
+        "home_repeatability_deg", "must be in [0, home_window_deg / 4)");
 }
 
 StageModel::StageModel(const StageParams& params)
-    : params_(params), steps_per_deg_(params.stepsPerDeg()) {
+    : params_(params), steps_per_deg_(params.stepsPerDeg()), home_rng_(params.home_seed) {
   validate(params_);
   position_ = std::llround(params_.initial_deg * steps_per_deg_);
-  home_ = homeAt(position_);
-  history_.push({Nanoseconds{0}, position_, 0.0});
+  output_ = static_cast<double>(position_);
+  half_backlash_ = params_.backlash_deg * steps_per_deg_ / 2;
+  drawHomeOffset();
+  home_ = homeAt(output_);
+  history_.push({Nanoseconds{0}, output_, 0.0});
 }
 
-bool StageModel::homeAt(std::int64_t position) const {
+void StageModel::drawHomeOffset() {
+  if (params_.home_repeatability_deg <= 0) return;
+  std::normal_distribution<double> offset(0.0, params_.home_repeatability_deg);
+  home_offset_deg_ = offset(home_rng_);
+}
+
+bool StageModel::homeAt(double position) const {
   if (home_switch_broken_) return false;
-  const double a = static_cast<double>(position) / steps_per_deg_ - params_.home_deg;
+  const double a = position / steps_per_deg_ - params_.home_deg - home_offset_deg_;
   const double d = std::remainder(a, 360.0);
   return std::abs(d) <= params_.home_window_deg / 2;
 }
@@ -124,10 +137,14 @@ void StageModel::stepPulse(Nanoseconds t) {
   }
   position_ += direction;
   (direction > 0 ? counters_.forward : counters_.backward) += 1;
-  history_.push({t, position_, std::abs(previous_speed_) / steps_per_deg_});
-  const bool home = homeAt(position_);
+  // The stage follows the motor only once the play is taken up.
+  const auto motor = static_cast<double>(position_);
+  output_ = std::clamp(output_, motor - half_backlash_, motor + half_backlash_);
+  history_.push({t, output_, std::abs(previous_speed_) / steps_per_deg_});
+  const bool home = homeAt(output_);
   if (home != home_) {
     home_ = home;
+    if (!home) drawHomeOffset();
     home_edges_.push({home, t});
     ++edge_count_;
   }
@@ -147,7 +164,7 @@ double StageModel::angleAt(Nanoseconds t) const {
     }
   }
   const Sample& s = history_.at(lo);
-  double angle = static_cast<double>(s.position) / steps_per_deg_;
+  double angle = s.position / steps_per_deg_;
   if (params_.settle_amplitude_deg > 0 && s.speed_deg_s > 0 && t > s.time) {
     const double dt = seconds(t - s.time);
     const double amp =

@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <random>
 
 #include "drivers/gpio.hpp"
 #include "drivers/sim/event_ring.hpp"
@@ -25,6 +26,14 @@ struct StageParams {
   double settle_tau_ms = 30.0;         // decay time constant of the ringing
   double settle_freq_hz = 40.0;
   double initial_deg = 0.0;  // where the stage is at power-up
+  // Play in the gear train: after a reversal the motor turns this far before
+  // the stage follows. The home switch and the projector sit on the stage.
+  double backlash_deg = 0.0;
+  // The home switch trips a little early or late on each approach: its edge
+  // moves by a Gaussian of this σ, drawn anew whenever the switch releases
+  // (from home_seed: the same sequence on every run).
+  double home_repeatability_deg = 0.0;
+  std::uint64_t home_seed = 1;
 
   bool operator==(const StageParams&) const = default;
   double stepsPerDeg() const { return full_steps_per_rev * microsteps * gear_ratio / 360.0; }
@@ -69,7 +78,8 @@ class StageModel {
   bool fault() const { return fault_; }
 
   std::int64_t position() const { return position_; }  // executed microsteps from zero
-  double angleDeg() const { return static_cast<double>(position_) / steps_per_deg_; }
+  // The stage's own angle: the motor's, less the backlash taken up.
+  double angleDeg() const { return output_ / steps_per_deg_; }
   // The angle at a past time, with the ringing after the last step.
   double angleAt(Nanoseconds t) const;
   bool homeActive() const { return home_; }
@@ -89,15 +99,20 @@ class StageModel {
  private:
   struct Sample {
     Nanoseconds time{0};
-    std::int64_t position = 0;
+    double position = 0;     // the stage's, in microsteps (backlash taken up)
     double speed_deg_s = 0;  // at this step (0 for a state change without motion)
   };
   bool followed(Nanoseconds t, int direction);
-  bool homeAt(std::int64_t position) const;
+  bool homeAt(double position) const;
+  void drawHomeOffset();
 
   StageParams params_;
   double steps_per_deg_;
-  std::int64_t position_;
+  std::int64_t position_;  // the motor's, in microsteps
+  double output_ = 0;      // the stage's: within half the backlash of the motor
+  double half_backlash_ = 0;
+  double home_offset_deg_ = 0;  // this approach's shift of the switch edge
+  std::mt19937_64 home_rng_;
   bool enabled_ = false;
   bool forward_ = true;
   bool home_ = false;

@@ -21,10 +21,11 @@
 // so it fails only when HTTP load visibly delays the real-time thread. A
 // sanitized build prints the lateness and does not assert the bound.
 //
-// The head file of the board is changed in three ways for the paced run:
-// pace_real_time = true; the stage's ringing after a stop off
-// (settle_amplitude_deg = 0), so a stop-and-go exposure sees the same angle
-// whatever the real time it starts at; and the motor model's start rate and
+// The head file of the board is changed in four ways for the paced run:
+// pace_real_time = true; the stage's ringing after a stop and the LED's
+// warm-up off (settle_amplitude_deg = 0, source_warmup_drop = 0), so a
+// stop-and-go exposure sees the same angle and light whatever the real time
+// it starts at; and the motor model's start rate and
 // top speed raised so far that it follows every pulse: a step executor that
 // wakes late emits the overdue pulses back to back, and on a shared VM (max
 // lateness of a few ms) the model stalls on such a burst in every paced run.
@@ -75,6 +76,8 @@ fs::path pacedBoard(const TempDir& dir) {
   std::string head = readBytes(board / "head.toml");
   head = replaceOnce(head, "pace_real_time = false", "pace_real_time = true");
   head = replaceOnce(head, "settle_amplitude_deg = 0.01", "settle_amplitude_deg = 0.0");
+  // The LED's level follows the real time since the light came on.
+  head = replaceOnce(head, "source_warmup_drop = 0.02", "source_warmup_drop = 0.0");
   head = replaceOnce(head, "max_speed_deg_s = 30.0", "max_speed_deg_s = 100000.0");
   head = replaceOnce(head, "start_speed_deg_s = 4.0", "start_speed_deg_s = 99999.0");
   std::ofstream(board / "head.toml", std::ios::trunc) << head;

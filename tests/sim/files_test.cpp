@@ -34,8 +34,18 @@ void expectConfigError(const std::function<void()>& f, int line, const std::stri
   }
 }
 
-TEST(HeadFile, BoardSimHeadIsTheBuiltInDefault) {
-  const HeadConfig file = loadHeadConfig(kBoard / "head.toml");
+// board/sim is the built-in head with a real head's imperfections: without
+// them it is the built-in one, and it has every one the cylinder and stage can.
+TEST(HeadFile, BoardSimHeadIsTheBuiltInDefaultMadeImperfect) {
+  const HeadConfig shipped = loadHeadConfig(kBoard / "head.toml");
+  EXPECT_GT(shipped.projector.low_half_offset_deg, 0);
+  EXPECT_GT(shipped.projector.slot_pitch_error_deg, 0);
+  EXPECT_GT(shipped.projector.slot_width_error, 0);
+  EXPECT_GT(shipped.projector.source_warmup_drop, 0);
+  EXPECT_GT(shipped.stage.backlash_deg, 0);
+  EXPECT_GT(shipped.stage.home_repeatability_deg, 0);
+  EXPECT_EQ(idealOf(defaultHeadConfig()), defaultHeadConfig());
+  const HeadConfig file = idealOf(shipped);
   const HeadConfig builtin = defaultHeadConfig();
   EXPECT_EQ(file.projector, builtin.projector);
   EXPECT_EQ(file.stage, builtin.stage);
