@@ -23,8 +23,10 @@ namespace {
 using cylscan::algo::QuasiCalibration;
 using cylscan::algo::QuasiCalibrationView;
 
-constexpr std::size_t kHeaderBytes = 64;
 constexpr std::size_t kCrcOffset = 60;
+constexpr std::size_t kCrcResumes = 64;  // the CRC covers [0, 60) and [64, end)
+constexpr std::size_t kHeaderBytesV1 = 64;
+constexpr std::size_t kHeaderBytes = 72;  // what serialize() writes (version 2)
 
 std::uint32_t crc32(std::uint32_t crc, const std::uint8_t* p, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
@@ -39,7 +41,7 @@ std::uint32_t crc32(std::uint32_t crc, const std::uint8_t* p, std::size_t n) {
 void fixCrc(std::vector<std::uint8_t>& bytes) {
   std::uint32_t crc = 0xffffffffu;
   crc = crc32(crc, bytes.data(), kCrcOffset);
-  crc = crc32(crc, bytes.data() + kHeaderBytes, bytes.size() - kHeaderBytes);
+  crc = crc32(crc, bytes.data() + kCrcResumes, bytes.size() - kCrcResumes);
   crc ^= 0xffffffffu;
   for (int i = 0; i < 4; ++i)
     bytes[kCrcOffset + i] = static_cast<std::uint8_t>(crc >> (8 * i));
@@ -64,17 +66,27 @@ void tryBytes(const std::vector<std::uint8_t>& bytes) {
   try {
     const QuasiCalibration calib = QuasiCalibration::deserialize(span);
     exercise(calib.view());
-    // A calibration that was read writes back to the same header, validity
-    // plane and records (the padding after the plane is not checked on read).
+    // A calibration that was read writes back to the same header fields,
+    // validity plane and records (the padding after the plane is not checked
+    // on read). It is written as version 2: a version-1 file (64-byte header,
+    // no order-residual fields) comes back 8 bytes longer with its version
+    // and header size changed, everything else the same.
     const std::vector<std::byte> again = calib.serialize();
+    const bool v1 = bytes[8] == 1;
+    const std::size_t header = v1 ? kHeaderBytesV1 : kHeaderBytes;
     const std::size_t pixels = static_cast<std::size_t>(calib.size().area());
     const std::size_t records = pixels * sizeof(cylscan::algo::PixelPolynomial);
-    const auto same = [&](std::size_t from, std::size_t n) {
-      return std::memcmp(again.data() + from, span.data() + from, n) == 0;
+    const auto same = [&](std::size_t out, std::size_t in, std::size_t n) {
+      return std::memcmp(again.data() + out, span.data() + in, n) == 0;
     };
-    if (again.size() != span.size() || !same(0, kCrcOffset) || !same(kHeaderBytes, pixels) ||
-        !same(span.size() - records, records))
+    const bool fields = v1 ? same(0, 0, 8) && same(16, 16, kCrcOffset - 16)
+                           : same(0, 0, kCrcOffset) && same(64, 64, kHeaderBytes - 64);
+    if (again.size() != span.size() - header + kHeaderBytes || !fields ||
+        !same(kHeaderBytes, header, pixels) ||
+        !same(again.size() - records, span.size() - records, records))
       throw std::logic_error("serialize(deserialize(bytes)) differs from bytes");
+    if (QuasiCalibration::deserialize(again).serialize() != again)
+      throw std::logic_error("a version-2 file does not write back byte for byte");
   } catch (const std::invalid_argument&) {
   }
   try {
@@ -89,7 +101,7 @@ void tryBytes(const std::vector<std::uint8_t>& bytes) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   std::vector<std::uint8_t> bytes(data, data + size);
   tryBytes(bytes);
-  if (bytes.size() >= kHeaderBytes) {
+  if (bytes.size() >= kCrcResumes) {
     fixCrc(bytes);
     tryBytes(bytes);
   }
