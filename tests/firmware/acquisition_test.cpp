@@ -149,6 +149,40 @@ TEST(Acquisition, StopAndGoStreamsTheHeadsPhaseAndSavesTheSameBundle) {
   EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0);
 }
 
+// A stop-and-go scan of the small board with `replace`d keys: its report
+// and the main camera's phase maps.
+struct StreamedScan {
+  ScanReport report;
+  algo::PhaseMaps maps;
+  PhaseError error;
+};
+// The same with head.toml keys too: `projector` added to [sim.head.projector],
+// `sections` appended to the board ([sim.head.stage], [[sim.head.camera]]).
+StreamedScan scanHead(const std::string& projector, const std::string& sections,
+                      const std::vector<std::pair<std::string, std::string>>& replace = {}) {
+  TempDir dir;
+  const fs::path board = smallBoard(dir, test_support::kWallScene, replace);
+  std::ifstream in(board / "board.toml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string toml = text.str();
+  const std::string header = "[sim.head.projector]\n";
+  toml.replace(toml.find(header), header.size(), header + projector);
+  dir.write("board.toml", toml + sections);
+  Scan scan(board);
+  PhaseSink phase(scan.plan, {});
+  Acquisition acquisition(scan.board);
+  StreamedScan out;
+  out.report = acquisition.run(scan.options, scan.plan, phase);
+  out.maps = phase.finalize("main");
+  out.error = compareWithHead(scan.head(), out.maps.absolute, out.report.high_deg.front());
+  return out;
+}
+
+StreamedScan scanWith(const std::vector<std::pair<std::string, std::string>>& replace) {
+  return scanHead("", "", replace);
+}
+
 // A cylinder whose low half is misaligned by Δ gives the low set a phase
 // offset of 2π·Δ/θl, which moves every order residual by R times that (about
 // 10 rad per degree). The engine finds the residuals' centre and unwraps
@@ -156,47 +190,24 @@ TEST(Acquisition, StopAndGoStreamsTheHeadsPhaseAndSavesTheSameBundle) {
 // reported centre moves by 9·2π·Δ/θl. (Before, a residual centred beyond the
 // fixed π/2 bound lost the whole surface.)
 TEST(Acquisition, AMisalignedLowHalfIsMeasuredAndUnwrappedAbout) {
-  struct Run {
-    double valid = 0;
-    double centre = 0;
-    PhaseError error;
+  const auto scanOffset = [](double low_half_offset_deg) {
+    return scanHead("low_half_offset_deg = " + std::to_string(low_half_offset_deg) + "\n", "");
   };
-  const auto scanWith = [](double low_half_offset_deg) {
-    TempDir dir;
-    const fs::path board = smallBoard(dir, test_support::kWallScene);
-    std::ifstream in(board / "board.toml");
-    std::stringstream text;
-    text << in.rdbuf();
-    std::string toml = text.str();
-    const std::string section = "[sim.head.projector]\n";
-    toml.replace(toml.find(section), section.size(),
-                 section + "low_half_offset_deg = " + std::to_string(low_half_offset_deg) + "\n");
-    dir.write("board.toml", toml);
-    Scan scan(board);
-    PhaseSink phase(scan.plan, algo::PhaseOptions{});
-    Acquisition acquisition(scan.board);
-    const ScanReport report = acquisition.run(scan.options, scan.plan, phase);
-    const algo::PhaseMaps maps = phase.finalize("main");
-    Run run;
-    run.valid = maps.valid_fraction;
-    run.centre = maps.order_residual.centre_rad;
-    run.error = compareWithHead(scan.head(), maps.absolute, report.high_deg.front());
-    return run;
-  };
-  const Run aligned = scanWith(0.0);
-  ASSERT_GT(aligned.valid, 0.8);
+  const StreamedScan aligned = scanOffset(0.0);
+  ASSERT_GT(aligned.maps.valid_fraction, 0.8);
   double sign = 0;
   // 0.15° moves the residuals by 1.5 rad: beyond the old fixed bound of π/2.
   for (double delta : {0.05, 0.15, -0.1}) {
-    const Run run = scanWith(delta);
+    const StreamedScan run = scanOffset(delta);
     const double expected = 9 * 2 * kPi * delta / 5.625;
-    const double moved = std::remainder(run.centre - aligned.centre, 2 * kPi);
+    const double moved = std::remainder(
+        run.maps.order_residual.centre_rad - aligned.maps.order_residual.centre_rad, 2 * kPi);
     if (sign == 0) sign = moved > 0 ? 1 : -1;
     // The centre is a mean over thousands of pixels (σ ≈ 0.01 rad): 0.05 rad
     // leaves room for the head's other small errors, which Δ does not change.
     EXPECT_NEAR(moved, sign * expected, 0.05) << delta;
     // Edge pixels whose residual lies near the bound may change sides: 0.5 %.
-    EXPECT_NEAR(run.valid, aligned.valid, 0.005) << delta;
+    EXPECT_NEAR(run.maps.valid_fraction, aligned.maps.valid_fraction, 0.005) << delta;
     // |9·2π·Δ/θl| < π: the centre needs no whole turn, so the orders are the
     // head's own and Φ is its geometry, as for the aligned cylinder.
     EXPECT_LT(run.error.rms, 0.01) << delta;
@@ -238,40 +249,6 @@ TEST(Acquisition, ContinuousModeGivesTheSamePhaseInFewerSeconds) {
     EXPECT_LT(report.set_duration[set], stop_report.set_duration[set]);
   }
   (void)a;
-}
-
-// A stop-and-go scan of the small board with `replace`d keys: its report
-// and the main camera's phase maps.
-struct StreamedScan {
-  ScanReport report;
-  algo::PhaseMaps maps;
-  PhaseError error;
-};
-// The same with head.toml keys too: `projector` added to [sim.head.projector],
-// `sections` appended to the board ([sim.head.stage], [[sim.head.camera]]).
-StreamedScan scanHead(const std::string& projector, const std::string& sections,
-                      const std::vector<std::pair<std::string, std::string>>& replace = {}) {
-  TempDir dir;
-  const fs::path board = smallBoard(dir, test_support::kWallScene, replace);
-  std::ifstream in(board / "board.toml");
-  std::stringstream text;
-  text << in.rdbuf();
-  std::string toml = text.str();
-  const std::string header = "[sim.head.projector]\n";
-  toml.replace(toml.find(header), header.size(), header + projector);
-  dir.write("board.toml", toml + sections);
-  Scan scan(board);
-  PhaseSink phase(scan.plan, {});
-  Acquisition acquisition(scan.board);
-  StreamedScan out;
-  out.report = acquisition.run(scan.options, scan.plan, phase);
-  out.maps = phase.finalize("main");
-  out.error = compareWithHead(scan.head(), out.maps.absolute, out.report.high_deg.front());
-  return out;
-}
-
-StreamedScan scanWith(const std::vector<std::pair<std::string, std::string>>& replace) {
-  return scanHead("", "", replace);
 }
 
 // The main camera's [[camera]] keys from `trigger` on, replaced.
