@@ -173,16 +173,23 @@ async function run() {
   const page = context.pages()[0] ?? (await context.newPage());
 
   const problems = [];
-  // With --token, the 401s before the token is typed in are expected.
-  let tokenGiven = !args.token;
+  // With --token, a 401 is expected for a request the page sent before the
+  // token was submitted, and only for those: the page may still have such a
+  // request in flight (the event stream's retry) when the token is typed in.
+  // A 401 for a request that carried a token, or for one sent without it after
+  // the token was given, is a problem.
+  let tokenSubmitted = !args.token;
+  const sentBeforeToken = new WeakSet();
   const unauthorized = [];
   page.on('pageerror', (error) => problems.push(`page error: ${error.message}`));
   page.on('console', (message) => {
-    if (message.type() === 'error' && !tokenGiven && message.text().includes('401')) unauthorized.push(message.text());
+    // The browser logs every refused request; the response handler below judges each one.
+    if (message.type() === 'error' && args.token && /status of 401\b/.test(message.text())) log(`console error: ${message.text()}`);
     else if (message.type() === 'error') problems.push(`console error: ${message.text()}`);
     else log(`console ${message.type()}: ${message.text()}`);
   });
   page.on('request', (request) => {
+    if (!tokenSubmitted) sentBeforeToken.add(request);
     if (!request.url().startsWith(`${base}/`) && !request.url().startsWith('blob:')) {
       problems.push(`request outside the head: ${request.url()}`);
     }
@@ -191,8 +198,12 @@ async function run() {
     problems.push(`request failed: ${request.method()} ${request.url()} (${request.failure()?.errorText})`);
   });
   page.on('response', (response) => {
-    const what = `HTTP ${response.status()}: ${response.request().method()} ${response.url()}`;
-    if (response.status() === 401 && !tokenGiven) unauthorized.push(what);
+    const request = response.request();
+    const what = `HTTP ${response.status()}: ${request.method()} ${response.url()}`;
+    const carriedToken = 'authorization' in request.headers();
+    if (response.status() === 401 && args.token && !carriedToken && sentBeforeToken.has(request)) unauthorized.push(what);
+    else if (response.status() === 401 && carriedToken) problems.push(`${what} (the request carried a token)`);
+    else if (response.status() === 401 && args.token) problems.push(`${what} (sent without the token after it was given)`);
     else if (response.status() >= 400) problems.push(what);
   });
 
@@ -203,8 +214,8 @@ async function run() {
     log(`the page asks for a token (${unauthorized.length} requests refused with 401 so far)`);
     if (unauthorized.length === 0) problems.push('the token box is shown but no request was refused');
     await page.fill('#token-input', args.token);
-    tokenGiven = true;
     await page.click('#token-form button[type=submit]');
+    tokenSubmitted = true;
     const stored = await page.evaluate(() => sessionStorage.getItem('cylscan.token'));
     if (stored !== args.token) problems.push('the token is not kept in sessionStorage');
     if (await page.isVisible('#token-box')) problems.push('the token box is still shown after the token was given');
