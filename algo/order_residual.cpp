@@ -61,6 +61,14 @@ ResidualStatistics measureResiduals(std::span<std::int32_t> residuals, int bits)
   const auto middle = residuals.begin() + static_cast<std::ptrdiff_t>(residuals.size() / 2);
   std::nth_element(residuals.begin(), middle, residuals.end());
   out.spread = static_cast<std::int32_t>(std::int64_t{*middle} * 14826 / 10000);
+  // The upper tail lies beyond the median: select within it only.
+  const auto tail = residuals.begin() +
+                    static_cast<std::ptrdiff_t>(residuals.size() - 1 - residuals.size() / 1000);
+  std::nth_element(middle, tail, residuals.end());
+  out.reach = *tail;
+  const std::int64_t far_from = unit * 7 / 16;
+  out.near_antipode = static_cast<std::size_t>(
+      std::count_if(tail, residuals.end(), [far_from](std::int32_t r) { return r > far_from; }));
   return out;
 }
 
@@ -69,6 +77,16 @@ std::int32_t residualBoundForSpread(std::int32_t spread, int bits) {
   const std::int64_t sigma = spread;
   const std::int64_t bound = std::min(6 * sigma, unit - sigma * 9 / 2);
   return static_cast<std::int32_t>(std::clamp(bound, unit / 4, unit * 9 / 20));
+}
+
+std::int32_t residualBound(const ResidualStatistics& stats, int bits) {
+  const std::int64_t unit = std::int64_t{1} << bits;
+  const std::int64_t from_spread = residualBoundForSpread(stats.spread, bits);
+  if (stats.near_antipode > stats.samples / kAntipodeSamplesPerOutlier)
+    return static_cast<std::int32_t>(from_spread);
+  const std::int64_t in_gap = stats.reach + (unit / 2 - stats.reach) / 2;
+  return static_cast<std::int32_t>(
+      std::clamp(std::max(from_spread, in_gap), unit / 4, unit * 9 / 20));
 }
 
 }  // namespace cylscan::algo

@@ -28,7 +28,17 @@ struct ResidualStatistics {
   std::int32_t centre = 0;  // the residuals' circular centre
   std::int32_t spread = 0;  // robust σ about it: 1.4826 · median |r − centre|
   std::size_t samples = 0;  // residuals it was measured on
+  // The residuals' reach: the 99.9th percentile of |r − centre|.
+  std::int32_t reach = 0;
+  // Residuals within 1/16 turn of the antipode centre ± π, where a pixel is
+  // nearly as close to the next order as to its own.
+  std::size_t near_antipode = 0;
 };
+
+// At most one residual in this many may lie near the antipode for the gap
+// rule of residualBound to apply: 4 of the engine's ~8k samples, what 0.4 %
+// of pixels with random phases (edges, shadows: 1/8 of them land there) give.
+inline constexpr std::size_t kAntipodeSamplesPerOutlier = 2048;
 
 // The fewest residuals a centre is measured from; with fewer, centre and
 // spread are 0 and the caller keeps its defaults.
@@ -51,6 +61,19 @@ ResidualStatistics measureResiduals(std::span<std::int32_t> residuals, int bits)
 //   than rejecting the small systematic errors of quantisation and harmonics.
 // - 0.9π above: a residual near ±π is equally near two orders.
 std::int32_t residualBoundForSpread(std::int32_t spread, int bits);
+
+// The bound the engine uses: the larger of the spread's bound and, when the
+// residuals leave the antipode empty, one in the middle of that gap (halfway
+// from their reach to ±π), within [π/2, 0.9π].
+// The spread's rule assumes Gaussian tails. The harmonics of a blurred
+// square wave and a camera's gamma at N = 3 or 4 instead give a bounded error,
+// a sum of sinusoids of the phase: its MAD is large (σ ≈ 1 rad at N = 3,
+// γ = 0.45, R = 8) but it never reaches ±π, so no order is wrong, and the
+// spread's bound would reject a fifth of the pixels whose orders are all
+// right. A wrong order needs a phase error beyond π, which would show as
+// residuals near the antipode (an error between π and 9π/8 lands there); with
+// none there, the orders up to the gap are right.
+std::int32_t residualBound(const ResidualStatistics& stats, int bits);
 
 // x wrapped into [−2^(bits−1), 2^(bits−1)).
 constexpr std::int32_t wrapResidual(std::int64_t x, int bits) {

@@ -90,7 +90,7 @@ ResidualRule residualRule(std::span<std::int32_t> residuals, const PipelineSetup
   if (setup.options.max_order_error_rad != -1) {
     rule.bound = u.fixedResidualBound(setup.options.max_order_error_rad);
   } else if (stats.samples >= kMinResidualSamples) {
-    rule.bound = residualBoundForSpread(stats.spread, bits);
+    rule.bound = residualBound(stats, bits);
   } else {
     rule.bound = u.fixedResidualBound(std::numbers::pi / 2);
   }

@@ -84,6 +84,8 @@ TEST(OrderResidual, IsDeterministic) {
   const ResidualStatistics sb = measureResiduals(b, kBits);
   EXPECT_EQ(sa.centre, sb.centre);
   EXPECT_EQ(sa.spread, sb.spread);
+  EXPECT_EQ(sa.reach, sb.reach);
+  EXPECT_EQ(sa.near_antipode, sb.near_antipode);
 }
 
 TEST(OrderResidual, BoundFollowsTheSpread) {
@@ -96,6 +98,68 @@ TEST(OrderResidual, BoundFollowsTheSpread) {
   EXPECT_NEAR(bound(0.55), 0.9 * pi, 1e-6);           // capped near ±π
   EXPECT_NEAR(bound(0.9), kTwoPi - 4.5 * 0.9, 1e-6);  // keeps 4.5σ to the next order
   EXPECT_NEAR(bound(2.0), pi / 2, 1e-6);              // hopeless: the floor
+}
+
+// Residuals about `centre` whose error is bounded: the sum of two sinusoids
+// of independent phases, a·sin(t1) + a·sin(t2) (the harmonics of the two sets
+// multiplied by R and R − 1, densest at the centre), reaching ±2a, plus a
+// little Gaussian noise and a fraction of outliers.
+std::vector<std::int32_t> boundedAbout(double centre, double amplitude, double outliers,
+                                       std::size_t n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> turn(0.0, kTwoPi);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  std::uniform_real_distribution<double> anywhere(-std::numbers::pi, std::numbers::pi);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<std::int32_t> out;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t1 = turn(rng), t2 = turn(rng);
+    out.push_back(
+        toUnits(unit(rng) < outliers
+                    ? anywhere(rng)
+                    : centre + amplitude / 2 * (std::sin(t1) + std::sin(t2)) + noise(rng)));
+  }
+  return out;
+}
+
+// A bounded error of ±2.3 rad has a MAD σ above 1 rad, for which the
+// spread's rule falls to π/2 and would reject the fifth of the pixels beyond
+// it, though none is near ±π and so none has a wrong order. The gap rule
+// keeps them: halfway from the reach (a little under 2.3 rad) to π.
+TEST(OrderResidual, ABoundedErrorThatLeavesTheAntipodeEmptyKeepsItsPixels) {
+  std::vector<std::int32_t> r = boundedAbout(1.2, 2.3, 0.0, 8192, 23);
+  const ResidualStatistics s = measureResiduals(r, kBits);
+  EXPECT_EQ(s.near_antipode, 0u);
+  // The sum's 99.9th percentile lies a little inside its reach of 2.3 rad.
+  EXPECT_GT(toRad(s.reach), 2.0);
+  EXPECT_LT(toRad(s.reach), 2.35);
+  EXPECT_NEAR(toRad(residualBoundForSpread(s.spread, kBits)), std::numbers::pi / 2, 1e-6);
+  const double bound = toRad(residualBound(s, kBits));
+  EXPECT_NEAR(bound, (toRad(s.reach) + std::numbers::pi) / 2, 1e-6);
+  EXPECT_GT(bound, 2.3);
+  EXPECT_NEAR(toRad(s.centre), 1.2, 0.05);
+}
+
+// Where residuals reach ±π, some orders are wrong and look right: the gap
+// rule stands aside and the spread's rule holds, for Gaussian noise of σ = 1
+// and for a bounded error with 2 % of the pixels anywhere (8 times the
+// outliers kAntipodeSamplesPerOutlier allows).
+TEST(OrderResidual, ResidualsNearTheAntipodeKeepTheSpreadsBound) {
+  std::vector<std::int32_t> gaussian = residualsAbout(0.4, 1.0, 0.0, 8192, 29);
+  const ResidualStatistics g = measureResiduals(gaussian, kBits);
+  EXPECT_GT(g.near_antipode, 8192u / kAntipodeSamplesPerOutlier);
+  EXPECT_EQ(residualBound(g, kBits), residualBoundForSpread(g.spread, kBits));
+
+  std::vector<std::int32_t> noisy = boundedAbout(-2.9, 2.3, 0.02, 8192, 31);
+  const ResidualStatistics n = measureResiduals(noisy, kBits);
+  EXPECT_GT(n.near_antipode, 8192u / kAntipodeSamplesPerOutlier);
+  EXPECT_EQ(residualBound(n, kBits), residualBoundForSpread(n.spread, kBits));
+
+  // A clean scan: the gap rule gives no less than the classic π/2.
+  std::vector<std::int32_t> clean = residualsAbout(0.0, 0.02, 0.0, 8192, 37);
+  const ResidualStatistics c = measureResiduals(clean, kBits);
+  EXPECT_GE(toRad(residualBound(c, kBits)), std::numbers::pi / 2);
+  EXPECT_LE(toRad(residualBound(c, kBits)), 0.9 * std::numbers::pi + 1e-6);
 }
 
 }  // namespace

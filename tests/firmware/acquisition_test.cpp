@@ -69,8 +69,10 @@ PhaseError compareWithHead(sim::VirtualHead& head, const cv::Mat& absolute, doub
       const cv::Vec3d p = geometry->points.at<cv::Vec3d>(v, u);
       const double beta = head.projector().wallAngleDeg(sim::Vec3(p[0], p[1], p[2]), start_deg);
       const double truth = 2 * kPi * beta / head.projector().params().theta_high_deg;
-      // Φ is absolute within one equivalent wavelength (λeq = 9 high periods).
-      const double eq = 2 * kPi * 9;
+      // Φ is absolute within one equivalent wavelength (λeq = R high periods).
+      const double th = head.projector().params().theta_high_deg;
+      const double tl = head.projector().params().theta_low_deg;
+      const double eq = 2 * kPi * tl / (tl - th);
       const double d = phi - truth - eq * std::round((phi - truth) / eq);
       sum += d * d;
       sum_d += d;
@@ -694,6 +696,75 @@ TEST(ImperfectHead, RollingShutterIsABiasLinearInTheRow) {
   EXPECT_GT(std::abs(short_line.error.per_row), 1e-4);
   // Linear in the line time: the exposure sub-samples and the ringing add a few per cent.
   EXPECT_NEAR(long_line.error.per_row / short_line.error.per_row, 4.0, 0.4);
+}
+
+// ---- few phase steps: harmonics and gamma that the N-step fit cannot reject -------
+//
+// At N = 3 the camera's gamma puts a second harmonic into the fringes, which
+// the 3-step fit aliases onto the phase; at N = 4 the square wave's third does
+// the same. Each set's phase error is a sinusoid of ~0.1 rad, and the order
+// residual R·φeq − φh carries them times R and R − 1: a bounded spread of
+// ±2.5 rad that never reaches ±π. The projector here is the virtual head's
+// own blurred square wave (σ 0.6°: third harmonic 3 % of the fundamental at
+// θh), the camera's gamma 0.45 is an uncorrected sRGB-like response, and the
+// periods are 5° and 40/7° (R = 8), as in the recordings these goals come from.
+
+struct FewStepScan {
+  double coverage = 0;  // valid pixels over those with modulation (neither dark nor saturated)
+  double wrong = 0;     // wrong orders over valid pixels
+  StreamedScan scan;
+};
+
+FewStepScan scanFewSteps(int n, double gamma) {
+  constexpr double kRatio = 8;
+  const std::string theta_low = std::to_string(5.0 * kRatio / (kRatio - 1));
+  const std::string frames = std::to_string(n);
+  FewStepScan out;
+  out.scan = scanHead("theta_low_deg = " + theta_low + "\nblur_width_deg = 0.6\n",
+                      cameras("response_gamma = " + std::to_string(gamma)),
+                      {{"frames_high = 25", "frames_high = " + frames},
+                       {"frames_low = 25", "frames_low = " + frames},
+                       {"period_low_deg = 5.625", "period_low_deg = " + theta_low}});
+  const cv::Mat& invalid = out.scan.maps.invalid;
+  const int modulated =
+      cv::countNonZero((invalid & (algo::kLowModulation | algo::kSaturated)) == 0);
+  const int valid = cv::countNonZero(invalid == 0);
+  out.coverage = modulated > 0 ? static_cast<double>(valid) / modulated : 0;
+  out.wrong = valid > 0 ? static_cast<double>(out.scan.error.wrong) / valid : 1;
+  print("N " + frames + ", gamma " + std::to_string(gamma), out.scan);
+  std::cout << "[head] coverage " << out.coverage << " of " << modulated << " modulated, wrong "
+            << out.wrong << ", bound " << out.scan.maps.order_residual.bound_rad << "\n";
+  return out;
+}
+
+// With the spread's bound alone (π/2 at this spread) N = 3 kept 81 % of the
+// modulated pixels, every rejected one with the right order; the residuals
+// leave ±π empty, so the bound moves into that gap and keeps them all.
+TEST(FewSteps, ThreeStepsWithGammaKeepNineTenthsAndTheirOrders) {
+  const FewStepScan s = scanFewSteps(3, 0.45);
+  EXPECT_GT(s.scan.maps.order_residual.spread_rad, 1.0);  // the harmonics are there
+  EXPECT_GE(s.coverage, 0.90);
+  EXPECT_LE(s.wrong, 1e-3);
+  EXPECT_LT(s.scan.error.rms, 0.15);  // the harmonics' ~0.1 rad, never an order
+}
+
+TEST(FewSteps, FourStepsWithGammaKeepNearlyAll) {
+  for (double gamma : {1.0, 0.45}) {
+    const FewStepScan s = scanFewSteps(4, gamma);
+    EXPECT_GE(s.coverage, 0.98) << gamma;
+    EXPECT_LE(s.wrong, 5e-4) << gamma;
+  }
+}
+
+// From N = 8 the harmonics up to the 6th are rejected by the fit: the bound
+// keeps at least every pixel the classic π/2 would.
+TEST(FewSteps, EightStepsKeepEverything) {
+  for (double gamma : {1.0, 0.45}) {
+    const FewStepScan s = scanFewSteps(8, gamma);
+    EXPECT_GE(s.scan.maps.order_residual.bound_rad, std::numbers::pi / 2 - 1e-6);
+    EXPECT_GE(s.coverage, 0.999) << gamma;
+    EXPECT_LE(s.wrong, 1e-4) << gamma;
+  }
 }
 
 }  // namespace
