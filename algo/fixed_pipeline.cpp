@@ -37,8 +37,7 @@ class FixedPipeline final : public PhasePipeline {
     const int max_pixel = setup.maxPixel();
     const ShiftWeights* sets[] = {&setup.high, &setup.low};
     const std::int64_t a_scale = FixedSetWeights::sharedTextureScale(sets, max_pixel);
-    // Modulation code: 32768 codes per full scale (1/128 count at 8 bits, 2 counts at 16).
-    const double codes_per_count = 32768.0 / (max_pixel + 1);
+    const double codes_per_count = modulationCodesPerCount(max_pixel);
     for (int i = 0; i < 2; ++i) {
       weights_[i] = FixedSetWeights::quantize(*sets[i], max_pixel, a_scale);
       code_per_sum_[i] = static_cast<float>(codes_per_count / weights_[i].cs_scale);
@@ -46,8 +45,7 @@ class FixedPipeline final : public PhasePipeline {
     const PhaseOptions& o = setup.options;
     combine_.unwrap = setup.unwrapper.fixedParams();
     combine_.fusion = setup.fusion.fixedParams();
-    combine_.min_modulation = static_cast<std::uint32_t>(
-        std::min(65535.0, std::ceil(o.min_modulation * codes_per_count)));
+    combine_.min_modulation = minModulationCode(o);
     combine_.radians_per_unit = static_cast<float>(2 * std::numbers::pi / 65536.0);
     combine_.counts_per_code = static_cast<float>(1.0 / codes_per_count);
     combine_.counts_per_texture = static_cast<float>(1.0 / (2.0 * static_cast<double>(a_scale)));
@@ -79,18 +77,7 @@ class FixedPipeline final : public PhasePipeline {
     fw.c = w.c[static_cast<std::size_t>(k)];
     fw.s = w.s[static_cast<std::size_t>(k)];
     fw.a = w.a[static_cast<std::size_t>(k)];
-    const int rows = frame.isContinuous() ? 1 : frame.rows;
-    const auto row_pixels = static_cast<std::size_t>(frame.isContinuous() ? pixels_ : frame.cols);
-    for (int r = 0; r < rows; ++r) {
-      const std::size_t offset = static_cast<std::size_t>(r) * row_pixels;
-      if (frame.depth() == CV_8U) {
-        foldKernel(isa_, mode_, frame.ptr<std::uint8_t>(r), row_pixels, fw, sum_c_.data() + offset,
-                   sum_s_.data() + offset, sum_a_.data() + offset);
-      } else {
-        foldKernel(isa_, mode_, frame.ptr<std::uint16_t>(r), row_pixels, fw, sum_c_.data() + offset,
-                   sum_s_.data() + offset, sum_a_.data() + offset);
-      }
-    }
+    foldFixedFrame(isa_, mode_, frame, fw, sum_c_.data(), sum_s_.data(), sum_a_.data());
     mode_ = FoldMode::kAccumulate;
   }
 
@@ -177,6 +164,23 @@ class FixedPipeline final : public PhasePipeline {
 };
 
 }  // namespace
+
+void foldFixedFrame(KernelIsa isa, FoldMode mode, const cv::Mat& frame, const FoldWeights& w,
+                    std::uint32_t* sum_c, std::uint32_t* sum_s, std::uint32_t* sum_a) {
+  const int rows = frame.isContinuous() ? 1 : frame.rows;
+  const auto row_pixels =
+      static_cast<std::size_t>(frame.isContinuous() ? frame.total() : frame.cols);
+  for (int r = 0; r < rows; ++r) {
+    const std::size_t offset = static_cast<std::size_t>(r) * row_pixels;
+    if (frame.depth() == CV_8U) {
+      foldKernel(isa, mode, frame.ptr<std::uint8_t>(r), row_pixels, w, sum_c + offset,
+                 sum_s + offset, sum_a + offset);
+    } else {
+      foldKernel(isa, mode, frame.ptr<std::uint16_t>(r), row_pixels, w, sum_c + offset,
+                 sum_s + offset, sum_a + offset);
+    }
+  }
+}
 
 std::unique_ptr<PhasePipeline> makeFixedPipeline(const PipelineSetup& setup) {
   return std::make_unique<FixedPipeline>(setup);

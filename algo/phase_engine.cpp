@@ -19,7 +19,21 @@ int index(FringeSet set) {
   return set == FringeSet::High ? 0 : 1;
 }
 
-PhaseOptions resolve(PhaseOptions o) {
+cv::Size checkedSize(cv::Size size) {
+  if (size.width <= 0 || size.height <= 0) {
+    throw std::invalid_argument("PhaseEngine: image size " + std::to_string(size.width) + "x" +
+                                std::to_string(size.height) + " is empty");
+  }
+  return size;
+}
+
+std::string where(FringeSet set, int k) {
+  return "fold(" + std::string(toString(set)) + ", k=" + std::to_string(k) + "): ";
+}
+
+}  // namespace
+
+PhaseOptions resolvePhaseOptions(PhaseOptions o) {
   if (o.bit_depth < 8 || o.bit_depth > 16) {
     throw std::invalid_argument("PhaseOptions::bit_depth is " + std::to_string(o.bit_depth) +
                                 "; it must be 8..16");
@@ -48,24 +62,42 @@ PhaseOptions resolve(PhaseOptions o) {
   return o;
 }
 
-cv::Size checkedSize(cv::Size size) {
-  if (size.width <= 0 || size.height <= 0) {
-    throw std::invalid_argument("PhaseEngine: image size " + std::to_string(size.width) + "x" +
-                                std::to_string(size.height) + " is empty");
+void checkFoldFrame(FringeSet set, int k, const cv::Mat& frame, cv::Size size, int bit_depth) {
+  if (frame.empty()) throw std::invalid_argument(where(set, k) + "the frame is empty");
+  if (frame.type() != CV_8UC1 && frame.type() != CV_16UC1) {
+    throw std::invalid_argument(where(set, k) + "the frame is " + cv::typeToString(frame.type()) +
+                                "; expected single-channel CV_8UC1 or CV_16UC1");
   }
-  return size;
+  if (frame.size() != size) {
+    throw std::invalid_argument(where(set, k) + "the frame is " + std::to_string(frame.cols) + "x" +
+                                std::to_string(frame.rows) + "; the engine expects " +
+                                std::to_string(size.width) + "x" + std::to_string(size.height));
+  }
+  if (frame.type() == CV_8UC1 && bit_depth != 8) {
+    throw std::invalid_argument(where(set, k) +
+                                "the frame is 8-bit but PhaseOptions::bit_depth is " +
+                                std::to_string(bit_depth));
+  }
+  if (frame.type() == CV_16UC1 && bit_depth == 8) {
+    throw std::invalid_argument(where(set, k) +
+                                "the frame is 16-bit but PhaseOptions::bit_depth is 8");
+  }
 }
 
-std::string where(FringeSet set, int k) {
-  return "fold(" + std::string(toString(set)) + ", k=" + std::to_string(k) + "): ";
+double modulationCodesPerCount(int max_pixel) {
+  return 32768.0 / (max_pixel + 1);
 }
 
-}  // namespace
+std::uint32_t minModulationCode(const PhaseOptions& resolved) {
+  const int max_pixel = (1 << resolved.bit_depth) - 1;
+  return static_cast<std::uint32_t>(
+      std::min(65535.0, std::ceil(resolved.min_modulation * modulationCodesPerCount(max_pixel))));
+}
 
 PipelineSetup::PipelineSetup(cv::Size size_, const PhaseOptions& options_,
                              const FringeSetGeometry& high_, const FringeSetGeometry& low_)
     : size(checkedSize(size_)),
-      options(resolve(options_)),
+      options(resolvePhaseOptions(options_)),
       high(high_, "high"),
       low(low_, "low"),
       unwrapper(high_.period_deg, low_.period_deg),
@@ -158,27 +190,7 @@ void PhaseEngine::fold(FringeSet set, int k, const cv::Mat& frame) {
     throw std::out_of_range(where(set, k) + "the " + std::string(toString(set)) + " set has " +
                             std::to_string(n) + " frames (k = 0.." + std::to_string(n - 1) + ")");
   }
-  if (frame.empty()) throw std::invalid_argument(where(set, k) + "the frame is empty");
-  if (frame.type() != CV_8UC1 && frame.type() != CV_16UC1) {
-    throw std::invalid_argument(where(set, k) + "the frame is " + cv::typeToString(frame.type()) +
-                                "; expected single-channel CV_8UC1 or CV_16UC1");
-  }
-  if (frame.size() != im.setup.size) {
-    throw std::invalid_argument(where(set, k) + "the frame is " + std::to_string(frame.cols) + "x" +
-                                std::to_string(frame.rows) + "; the engine expects " +
-                                std::to_string(im.setup.size.width) + "x" +
-                                std::to_string(im.setup.size.height));
-  }
-  const int bits = im.setup.options.bit_depth;
-  if (frame.type() == CV_8UC1 && bits != 8) {
-    throw std::invalid_argument(where(set, k) +
-                                "the frame is 8-bit but PhaseOptions::bit_depth is " +
-                                std::to_string(bits));
-  }
-  if (frame.type() == CV_16UC1 && bits == 8) {
-    throw std::invalid_argument(where(set, k) +
-                                "the frame is 16-bit but PhaseOptions::bit_depth is 8");
-  }
+  checkFoldFrame(set, k, frame, im.setup.size, im.setup.options.bit_depth);
   if (im.folded[index(set)][static_cast<std::size_t>(k)]) {
     throw std::logic_error(where(set, k) + "frame " + std::to_string(k) + " of the " +
                            std::string(toString(set)) + " set was already folded");

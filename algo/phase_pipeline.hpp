@@ -9,11 +9,37 @@
 #include <span>
 
 #include "algo/dual_set_fusion.hpp"
+#include "algo/fixed_kernels.hpp"
 #include "algo/phase_engine.hpp"
 #include "algo/shift_weights.hpp"
 #include "algo/temporal_unwrapping.hpp"
 
 namespace cylscan::algo {
+
+// PhaseOptions with every default resolved; std::invalid_argument for bad ones.
+PhaseOptions resolvePhaseOptions(PhaseOptions options);
+// PhaseEngine::fold's checks of the frame itself for frame k of `set`:
+// std::invalid_argument saying what is wrong.
+void checkFoldFrame(FringeSet set, int k, const cv::Mat& frame, cv::Size size, int bit_depth);
+
+// The fixed path's modulation code: 32768 codes per full scale (1/128 count at
+// 8 bits, 2 counts at 16).
+double modulationCodesPerCount(int max_pixel);
+// The modulation code below which the fixed path flags a pixel kLowModulation.
+std::uint32_t minModulationCode(const PhaseOptions& resolved);
+// One checked frame into the fixed path's sums: foldKernel over its rows.
+void foldFixedFrame(KernelIsa isa, FoldMode mode, const cv::Mat& frame, const FoldWeights& w,
+                    std::uint32_t* sum_c, std::uint32_t* sum_s, std::uint32_t* sum_a);
+
+// One checked frame into the reference path's sums (C, S, A += w·I, counts
+// clamped to full scale); saturated[p] is set where the pixel reaches the
+// saturation level.
+void foldReferenceFrame(const FrameWeights& w, const cv::Mat& frame, const PhaseOptions& resolved,
+                        double* sum_c, double* sum_s, double* sum_a, std::uint8_t* saturated);
+// The reference path's φ = atan2(s, c) in [0, 2π).
+double referenceWrappedPhase(double s, double c);
+// φ in [0, 2π) as a float that is still below 2π.
+float wrappedFloat(double phi);
 
 // Everything the pipelines need, with every option resolved.
 struct PipelineSetup {

@@ -21,19 +21,6 @@ int index(FringeSet set) {
   return set == FringeSet::High ? 0 : 1;
 }
 
-// φ in [0, 2π) as a float that is still below 2π.
-float wrappedFloat(double phi) {
-  constexpr float kBelowTwoPi = 6.2831850f;  // largest float < 2π
-  auto f = static_cast<float>(phi);
-  return f > kBelowTwoPi ? 0.0f : f;
-}
-
-double wrappedPhase(double s, double c) {
-  double phi = std::atan2(s, c);
-  if (phi < 0) phi += kTwoPi;
-  return phi >= kTwoPi ? 0.0 : phi;
-}
-
 class ReferencePipeline final : public PhasePipeline {
  public:
   explicit ReferencePipeline(const PipelineSetup& setup)
@@ -48,23 +35,10 @@ class ReferencePipeline final : public PhasePipeline {
   void beginSet(FringeSet) override {}
 
   void fold(FringeSet set, int k, const cv::Mat& frame) override {
-    const FrameWeights w = setup_.weights(set).frame(static_cast<std::size_t>(k));
     const int i = index(set);
-    const auto saturation = static_cast<double>(setup_.options.saturation_level);
-    const auto max_pixel = static_cast<double>(setup_.maxPixel());
-    const auto cols = static_cast<std::size_t>(frame.cols);
-    for (int r = 0; r < frame.rows; ++r) {
-      for (std::size_t x = 0; x < cols; ++x) {
-        const double raw =
-            frame.depth() == CV_8U ? frame.ptr<std::uint8_t>(r)[x] : frame.ptr<std::uint16_t>(r)[x];
-        const std::size_t p = static_cast<std::size_t>(r) * cols + x;
-        if (raw >= saturation) saturated_[p] = 1;
-        const double v = std::min(raw, max_pixel);
-        sum_c_[i][p] += w.c * v;
-        sum_s_[i][p] += w.s * v;
-        sum_a_[i][p] += w.a * v;
-      }
-    }
+    foldReferenceFrame(setup_.weights(set).frame(static_cast<std::size_t>(k)), frame,
+                       setup_.options, sum_c_[i].data(), sum_s_[i].data(), sum_a_[i].data(),
+                       saturated_.data());
   }
 
   void finalizeCompact(CompactPhase& /*out*/) const override {
@@ -80,8 +54,8 @@ class ReferencePipeline final : public PhasePipeline {
     const double bound = maps.order_residual.bound_rad;
     std::size_t valid = 0;
     for (std::size_t p = 0; p < pixels_; ++p) {
-      const double phi_h = wrappedPhase(sum_s_[0][p], sum_c_[0][p]);
-      const double phi_l = wrappedPhase(sum_s_[1][p], sum_c_[1][p]);
+      const double phi_h = referenceWrappedPhase(sum_s_[0][p], sum_c_[0][p]);
+      const double phi_l = referenceWrappedPhase(sum_s_[1][p], sum_c_[1][p]);
       const double b_h = std::hypot(sum_c_[0][p], sum_s_[0][p]);
       const double b_l = std::hypot(sum_c_[1][p], sum_s_[1][p]);
       const ReferenceOrders orders = setup_.unwrapper.unwrap(phi_h, phi_l, centre);
@@ -133,8 +107,9 @@ class ReferencePipeline final : public PhasePipeline {
       if (saturated_[p] != 0 || std::hypot(sum_c_[0][p], sum_s_[0][p]) < o.min_modulation ||
           std::hypot(sum_c_[1][p], sum_s_[1][p]) < o.min_modulation)
         continue;
-      const ReferenceOrders orders = setup_.unwrapper.unwrap(
-          wrappedPhase(sum_s_[0][p], sum_c_[0][p]), wrappedPhase(sum_s_[1][p], sum_c_[1][p]));
+      const ReferenceOrders orders =
+          setup_.unwrapper.unwrap(referenceWrappedPhase(sum_s_[0][p], sum_c_[0][p]),
+                                  referenceWrappedPhase(sum_s_[1][p], sum_c_[1][p]));
       residuals.push_back(wrapResidual(std::llround(orders.residual_rad * units_per_rad), bits));
     }
     return algo::residualRule(residuals, setup_);
@@ -147,6 +122,37 @@ class ReferencePipeline final : public PhasePipeline {
 };
 
 }  // namespace
+
+void foldReferenceFrame(const FrameWeights& w, const cv::Mat& frame, const PhaseOptions& resolved,
+                        double* sum_c, double* sum_s, double* sum_a, std::uint8_t* saturated) {
+  const auto saturation = static_cast<double>(resolved.saturation_level);
+  const auto max_pixel = static_cast<double>((1 << resolved.bit_depth) - 1);
+  const auto cols = static_cast<std::size_t>(frame.cols);
+  for (int r = 0; r < frame.rows; ++r) {
+    for (std::size_t x = 0; x < cols; ++x) {
+      const double raw =
+          frame.depth() == CV_8U ? frame.ptr<std::uint8_t>(r)[x] : frame.ptr<std::uint16_t>(r)[x];
+      const std::size_t p = static_cast<std::size_t>(r) * cols + x;
+      if (raw >= saturation) saturated[p] = 1;
+      const double v = std::min(raw, max_pixel);
+      sum_c[p] += w.c * v;
+      sum_s[p] += w.s * v;
+      sum_a[p] += w.a * v;
+    }
+  }
+}
+
+double referenceWrappedPhase(double s, double c) {
+  double phi = std::atan2(s, c);
+  if (phi < 0) phi += kTwoPi;
+  return phi >= kTwoPi ? 0.0 : phi;
+}
+
+float wrappedFloat(double phi) {
+  constexpr float kBelowTwoPi = 6.2831850f;  // largest float < 2π
+  auto f = static_cast<float>(phi);
+  return f > kBelowTwoPi ? 0.0f : f;
+}
 
 std::unique_ptr<PhasePipeline> makeReferencePipeline(const PipelineSetup& setup) {
   return std::make_unique<ReferencePipeline>(setup);

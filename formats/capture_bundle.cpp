@@ -66,8 +66,26 @@ std::optional<std::string> setFault(const FringeSetInfo& set, const std::string&
   return std::nullopt;
 }
 
+// Fault of a pair of sets: the top-level "sets", or `camera`'s "camera_sets"
+// entry when `own`. A set may be absent only where `required` allows it, and
+// never both.
+std::optional<std::string> setPairFault(const CaptureInfo& info, std::string_view camera, bool own,
+                                        SetsRequired required) {
+  const std::string where = own ? "camera_sets." + std::string(camera) : "sets";
+  bool any = false;
+  for (const FringeSet id : kFringeSets) {
+    const FringeSetInfo& set = own ? info.setOf(camera, id) : info.set(id);
+    const bool absent = set.stage_deg.empty() && set.period_deg == 0;
+    if (absent && required == SetsRequired::OneOrBoth) continue;
+    if (auto fault = setFault(set, setWhere(camera, id, own))) return fault;
+    any = true;
+  }
+  if (!any) return "neither set \"high\" nor set \"low\" in " + inQuotes(where);
+  return std::nullopt;
+}
+
 // Fault of the info itself (shared by reader and writer), in capture.json terms.
-std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
+std::optional<std::string> captureInfoFault(const CaptureInfo& info, SetsRequired required) {
   if (info.cameras.empty()) return "\"cameras\" is empty (it must contain \"main\")";
   for (std::size_t i = 0; i < info.cameras.size(); ++i) {
     const std::string& name = info.cameras[i];
@@ -82,17 +100,13 @@ std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
   if (std::find(info.cameras.begin(), info.cameras.end(), "main") == info.cameras.end()) {
     return "\"cameras\" does not contain \"main\"";
   }
-  for (const FringeSet id : kFringeSets) {
-    if (auto fault = setFault(info.set(id), "sets." + std::string(toString(id)))) return fault;
-  }
+  if (auto fault = setPairFault(info, "main", false, required)) return fault;
   for (const auto& [camera, sets] : info.camera_sets) {
     if (std::find(info.cameras.begin(), info.cameras.end(), camera) == info.cameras.end()) {
       return "\"camera_sets\" has camera " + inQuotes(camera) + ", which is not in \"cameras\"";
     }
     if (camera == "main") return kMainInCameraSets;
-    for (const FringeSet id : kFringeSets) {
-      if (auto fault = setFault(sets.set(id), setWhere(camera, id))) return fault;
-    }
+    if (auto fault = setPairFault(info, camera, true, required)) return fault;
   }
   return std::nullopt;
 }
@@ -100,7 +114,8 @@ std::optional<std::string> captureInfoFault(const CaptureInfo& info) {
 // Turns the parsed capture.json into CaptureInfo, or InputError naming the file.
 class CaptureJsonParser {
  public:
-  explicit CaptureJsonParser(fs::path file) : file_(std::move(file)) {}
+  CaptureJsonParser(fs::path file, SetsRequired required)
+      : file_(std::move(file)), required_(required) {}
 
   CaptureInfo parse(const json& doc) const {
     if (!doc.is_object()) fail("the top level is a " + jsonTypeName(doc) + ", not a JSON object");
@@ -122,7 +137,8 @@ class CaptureJsonParser {
       }
       if (!camera_extras.empty()) info.extra["camera_sets"] = std::move(camera_extras);
     }
-    if (auto fault = captureInfoFault(info)) fail(*fault);  // the rules shared with the writer
+    // The rules shared with the writer.
+    if (auto fault = captureInfoFault(info, required_)) fail(*fault);
     return info;
   }
 
@@ -133,7 +149,9 @@ class CaptureJsonParser {
   static json setExtras(const json& sets) {
     json out = json::object();
     for (const FringeSet id : kFringeSets) {
-      json extra = sets.at(std::string(toString(id)));
+      const auto set = sets.find(std::string(toString(id)));
+      if (set == sets.end()) continue;  // the absent set of a one-set bundle
+      json extra = *set;
       extra.erase("period_deg");
       extra.erase("stage_deg");
       if (!extra.empty()) out[std::string(toString(id))] = std::move(extra);
@@ -175,7 +193,8 @@ class CaptureJsonParser {
   }
 
   // The extension "camera_sets": {camera: {"high": {...}, "low": {...}}}, each
-  // camera one of "cameras", each with both sets, validated like "sets".
+  // camera one of "cameras", its sets validated like "sets" (both, unless
+  // SetsRequired::OneOrBoth).
   void readCameraSets(const json& doc, CaptureInfo& info) const {
     const auto it = doc.find("camera_sets");
     if (it == doc.end()) return;
@@ -194,18 +213,26 @@ class CaptureJsonParser {
     }
   }
 
-  // Exactly "high" and "low" in `sets` (the object at `where`).
+  // Exactly "high" and "low" in `sets` (the object at `where`); with
+  // SetsRequired::OneOrBoth one of them may be absent, and stays empty.
   void readSetPair(const json& sets, const std::string& where, FringeSetInfo& high,
                    FringeSetInfo& low) const {
+    const bool one_or_both = required_ == SetsRequired::OneOrBoth;
     for (const auto& [name, value] : sets.items()) {
-      if (name != toString(FringeSet::High) && name != toString(FringeSet::Low)) {
+      if (!parseFringeSet(name)) {
         fail("unknown fringe set " + inQuotes(name) + " in " + inQuotes(where) +
-             " (expected exactly \"high\" and \"low\")");
+             (one_or_both ? " (expected \"high\", \"low\" or both)"
+                          : " (expected exactly \"high\" and \"low\")"));
       }
+    }
+    if (one_or_both && sets.empty()) {
+      fail("neither set \"high\" nor set \"low\" in " + inQuotes(where) +
+           " (a bundle needs at least one)");
     }
     for (const FringeSet id : kFringeSets) {
       const std::string name(toString(id));
       const auto set = sets.find(name);
+      if (set == sets.end() && one_or_both) continue;
       if (set == sets.end()) fail("missing set " + inQuotes(name) + " in " + inQuotes(where));
       std::string set_where = where;
       set_where += '.';
@@ -249,6 +276,7 @@ class CaptureJsonParser {
   }
 
   fs::path file_;
+  SetsRequired required_;
 };
 
 // Frame files of a set directory: names made of digits + ".png", with their index.
@@ -314,7 +342,7 @@ std::string frameFileName(int k, int n) {
 
 // ----------------------------------------------------------------------------- reader
 
-CaptureBundleReader::CaptureBundleReader(fs::path dir, FrameLimits limits)
+CaptureBundleReader::CaptureBundleReader(fs::path dir, FrameLimits limits, SetsRequired sets)
     : dir_(std::move(dir)), limits_(limits) {
   const fs::path json_file = dir_ / kCaptureJson;
   std::error_code ec;
@@ -322,7 +350,7 @@ CaptureBundleReader::CaptureBundleReader(fs::path dir, FrameLimits limits)
     throw InputError(json_file, "missing: " + dir_.string() + " is not a capture bundle");
   }
   const json doc = readJsonFile(json_file, kMaxCaptureJsonBytes);
-  info_ = CaptureJsonParser(json_file).parse(doc);
+  info_ = CaptureJsonParser(json_file, sets).parse(doc);
 
   for (const std::string& camera : info_.cameras) {
     std::optional<cv::Size> first;
@@ -429,7 +457,7 @@ cv::Mat CaptureBundleReader::readFrame(std::string_view camera, FringeSet set, i
 CaptureBundleWriter::CaptureBundleWriter(fs::path dir, CaptureInfo info)
     : dir_(std::move(dir)), info_(std::move(info)) {
   const fs::path json_file = dir_ / kCaptureJson;
-  if (auto fault = captureInfoFault(info_)) {
+  if (auto fault = captureInfoFault(info_, SetsRequired::Both)) {
     throw std::invalid_argument("capture bundle " + dir_.string() + ": " + *fault);
   }
   if (!info_.extra.is_object()) {

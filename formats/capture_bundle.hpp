@@ -23,6 +23,14 @@ struct FringeSetInfo {
   std::vector<double> stage_deg;  // executed stage angle of each frame
 };
 
+// The fringe sets a reader requires in "sets" and in each "camera_sets" entry.
+// The contract is Both. OneOrBoth is an extension for a bundle recorded with a
+// single pattern set: one of the two may be absent (never both), and the absent
+// set's FringeSetInfo stays empty. Only `cylscan phase` reads with it, because
+// only the wrapped phase can be had from one set; everything that needs the
+// absolute phase keeps refusing such a bundle.
+enum class SetsRequired { Both, OneOrBoth };
+
 // A camera's own two sets (the extension field "camera_sets"): a ring scan's
 // cameras see the same stage angles in different roles, so a camera whose
 // sets differ from the top-level ones (main's) carries its own.
@@ -54,6 +62,12 @@ struct CaptureInfo {
   FringeSetInfo& set(FringeSet id) { return id == FringeSet::High ? high : low; }
   // A camera's own set: its "camera_sets" entry when it has one, else the top-level set.
   const FringeSetInfo& setOf(std::string_view camera, FringeSet id) const;
+  // False only for the set a one-set bundle lacks (SetsRequired::OneOrBoth): a
+  // set that is present has at least kMinFramesPerSet frames.
+  bool hasSet(FringeSet id) const { return !set(id).stage_deg.empty(); }
+  bool hasSetOf(std::string_view camera, FringeSet id) const {
+    return !setOf(camera, id).stage_deg.empty();
+  }
   bool hasOwnSets(std::string_view camera) const {
     return camera_sets.find(camera) != camera_sets.end();
   }
@@ -69,10 +83,13 @@ struct FrameLimits {
 // Reads and validates a bundle. Every fault throws InputError naming the file.
 // The constructor validates capture.json and every frame's PNG header (present,
 // single-channel, 8/16-bit, within limits, one size per camera, no frame files
-// beyond the angle list) without decoding any frame.
+// beyond the angle list) without decoding any frame. `sets` says whether a set
+// may be absent (SetsRequired); an absent set has no frames (frameCount 0), and
+// a frame file in its directory is an error like any frame beyond the angle list.
 class CaptureBundleReader {
  public:
-  explicit CaptureBundleReader(std::filesystem::path dir, FrameLimits limits = {});
+  explicit CaptureBundleReader(std::filesystem::path dir, FrameLimits limits = {},
+                               SetsRequired sets = SetsRequired::Both);
 
   const std::filesystem::path& dir() const { return dir_; }
   const CaptureInfo& info() const { return info_; }
@@ -100,8 +117,8 @@ class CaptureBundleReader {
   std::map<std::string, cv::Size, std::less<>> frame_sizes_;  // per camera
 };
 
-// Writes a bundle. Frames first; capture.json last (atomically), so a bundle
-// without capture.json is never mistaken for a whole one.
+// Writes a bundle (always with both sets: the contract). Frames first; capture.json last
+// (atomically), so a bundle without capture.json is never mistaken for a whole one.
 //
 // The constructor validates `info` (std::invalid_argument), creates the
 // directory and removes a capture.json already there: the directory is being

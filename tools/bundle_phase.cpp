@@ -3,7 +3,9 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
+#include <string>
 
 #include "formats/input_error.hpp"
 #include "tools/stopwatch.hpp"
@@ -36,6 +38,36 @@ int bitDepthOf(const formats::CaptureBundleReader& bundle, const cv::Mat& first,
   return 16;
 }
 
+algo::PhaseOptions engineOptions(const formats::CaptureBundleReader& bundle, const cv::Mat& first,
+                                 const BundlePhaseOptions& options) {
+  algo::PhaseOptions engine_options;
+  engine_options.bit_depth = bitDepthOf(bundle, first, options.bit_depth);
+  engine_options.min_modulation = options.min_modulation;
+  engine_options.fixed_point = !options.reference;
+  engine_options.order_reference_rad = options.order_reference_rad;
+  return engine_options;
+}
+
+// Streams the frames of `camera`'s set into `fold` as they are read (none is
+// kept); `first` is frame 0 of the set, already read. A fold's
+// std::invalid_argument is an InputError naming the frame.
+template <typename Fold, typename Timings>
+void foldSet(const formats::CaptureBundleReader& bundle, const std::string& camera, FringeSet set,
+             const cv::Mat& first, Stopwatch& watch, Timings& out, Fold&& fold) {
+  const int n = bundle.frameCount(camera, set);
+  for (int k = 0; k < n; ++k) {
+    watch.lapMs();
+    const cv::Mat frame = k == 0 && !first.empty() ? first : bundle.readFrame(camera, set, k);
+    out.read_ms += watch.lapMs();
+    try {
+      fold(k, frame);
+    } catch (const std::invalid_argument& e) {
+      throw formats::InputError(bundle.framePath(camera, set, k), e.what());
+    }
+    out.fold_ms += watch.lapMs();
+  }
+}
+
 // The camera's own sets: its "camera_sets" entry (a ring scan's cameras facing
 // the other half), else the top-level ones.
 algo::PhaseEngine makeEngine(const formats::CaptureBundleReader& bundle, const std::string& camera,
@@ -61,38 +93,66 @@ void requireCamera(const formats::CaptureBundleReader& bundle, const std::string
 BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
                                const std::string& camera, const BundlePhaseOptions& options) {
   requireCamera(bundle, camera);
+  if (const std::optional<FringeSet> only = onlySetOf(bundle, camera)) {
+    throw formats::InputError(bundle.dir() / "capture.json",
+                              "camera '" + camera + "' has only the " +
+                                  std::string(toString(*only)) +
+                                  " set; the absolute phase needs both \"high\" and \"low\"");
+  }
   BundlePhase out;
   Stopwatch watch;
   const cv::Mat first = bundle.readFrame(camera, FringeSet::High, 0);
   out.read_ms += watch.lapMs();
   out.size = first.size();
 
-  algo::PhaseOptions engine_options;
-  engine_options.bit_depth = bitDepthOf(bundle, first, options.bit_depth);
-  engine_options.min_modulation = options.min_modulation;
-  engine_options.fixed_point = !options.reference;
-  engine_options.order_reference_rad = options.order_reference_rad;
+  const algo::PhaseOptions engine_options = engineOptions(bundle, first, options);
   out.bit_depth = engine_options.bit_depth;
   algo::PhaseEngine engine = makeEngine(bundle, camera, out.size, engine_options);
 
   // Streaming: each frame is folded in as soon as it is read; none is kept.
   for (const auto set : kFringeSets) {
-    const int n = bundle.frameCount(camera, set);
-    for (int k = 0; k < n; ++k) {
-      watch.lapMs();
-      const bool reuse_first = set == FringeSet::High && k == 0;
-      const cv::Mat frame = reuse_first ? first : bundle.readFrame(camera, set, k);
-      out.read_ms += watch.lapMs();
-      try {
-        engine.fold(toAlgo(set), k, frame);
-      } catch (const std::invalid_argument& e) {
-        throw formats::InputError(bundle.framePath(camera, set, k), e.what());
-      }
-      out.fold_ms += watch.lapMs();
-    }
+    foldSet(bundle, camera, set, set == FringeSet::High ? first : cv::Mat(), watch, out,
+            [&](int k, const cv::Mat& frame) { engine.fold(toAlgo(set), k, frame); });
   }
   watch.lapMs();
   out.maps = engine.finalize();
+  out.finalize_ms = watch.lapMs();
+  return out;
+}
+
+std::optional<FringeSet> onlySetOf(const formats::CaptureBundleReader& bundle,
+                                   const std::string& camera) {
+  requireCamera(bundle, camera);
+  const formats::CaptureInfo& info = bundle.info();
+  if (!info.hasSetOf(camera, FringeSet::Low)) return FringeSet::High;
+  if (!info.hasSetOf(camera, FringeSet::High)) return FringeSet::Low;
+  return std::nullopt;
+}
+
+BundleSetPhase computeBundleSetPhase(const formats::CaptureBundleReader& bundle,
+                                     const std::string& camera, FringeSet set,
+                                     const BundlePhaseOptions& options) {
+  requireCamera(bundle, camera);
+  BundleSetPhase out;
+  out.set = set;
+  Stopwatch watch;
+  const cv::Mat first = bundle.readFrame(camera, set, 0);
+  out.read_ms += watch.lapMs();
+  out.size = first.size();
+
+  const algo::PhaseOptions engine_options = engineOptions(bundle, first, options);
+  out.bit_depth = engine_options.bit_depth;
+  std::optional<algo::OneSetPhase> engine;
+  try {
+    engine.emplace(out.size, toAlgo(set), geometryOf(bundle.info().setOf(camera, set)),
+                   engine_options);
+  } catch (const std::invalid_argument& e) {  // includes ShiftSolveError
+    throw formats::InputError(bundle.dir() / "capture.json", e.what());
+  }
+  foldSet(bundle, camera, set, first, watch, out,
+          [&](int k, const cv::Mat& frame) { engine->fold(k, frame); });
+  watch.lapMs();
+  out.maps = engine->finalize();
   out.finalize_ms = watch.lapMs();
   return out;
 }

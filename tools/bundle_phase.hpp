@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "algo/one_set_phase.hpp"
 #include "algo/phase_engine.hpp"
 #include "firmware/reconstruction.hpp"
 #include "formats/capture_bundle.hpp"
@@ -31,16 +32,40 @@ struct BundlePhase {
   double finalize_ms = 0;
 };
 
+// The phase of a one-set bundle (formats::SetsRequired::OneOrBoth): the
+// wrapped phase of the set it has, nothing absolute.
+struct BundleSetPhase {
+  FringeSet set = FringeSet::High;
+  algo::OneSetMaps maps;
+  cv::Size size;
+  int bit_depth = 8;  // as resolved for the frames
+  double read_ms = 0;
+  double fold_ms = 0;
+  double finalize_ms = 0;
+};
+
 // The map of the absolute phase a command works on (PhaseSource, shared with
 // the daemon): Φ of the high set, or the fused one.
 using firmware::absolutePhase;
 
 // Runs the engine over all frames of `camera`, with the camera's own sets
 // (formats::CaptureInfo::setOf: a ring scan's "camera_sets"). InputError naming capture.json
-// when the camera is missing or the angles are unusable, naming the frame when
-// a frame is bad.
+// when the camera is missing, lacks a set or the angles are unusable, naming the
+// frame when a frame is bad.
 BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
                                const std::string& camera, const BundlePhaseOptions& options = {});
+
+// The one set `camera` has when the bundle lacks the other (a reader with
+// formats::SetsRequired::OneOrBoth); nullopt when it has both. InputError
+// naming capture.json for a camera the bundle does not have.
+std::optional<FringeSet> onlySetOf(const formats::CaptureBundleReader& bundle,
+                                   const std::string& camera);
+
+// The wrapped phase of `camera`'s set `set` alone, with the same fold and the
+// same errors as computeBundlePhase; options.order_reference_rad is unused.
+BundleSetPhase computeBundleSetPhase(const formats::CaptureBundleReader& bundle,
+                                     const std::string& camera, FringeSet set,
+                                     const BundlePhaseOptions& options = {});
 
 // InputError naming capture.json unless the bundle has `camera`.
 void requireCamera(const formats::CaptureBundleReader& bundle, const std::string& camera);

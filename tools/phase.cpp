@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // cylscan phase: absolute phase maps of one camera of a capture bundle
-// (docs/formats.md, command line).
+// (docs/formats.md, command line); for a bundle with one set, that set's
+// wrapped phase alone.
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -43,13 +45,74 @@ struct PhaseRequest {
   bool json = false;
 };
 
+// Why a one-set bundle gives no absolute phase, for the text and the JSON summary.
+std::string oneSetNote(FringeSet set) {
+  return "no absolute phase: the bundle has only the " + std::string(toString(set)) +
+         " set, and unwrapping needs both \"high\" and \"low\"";
+}
+
+// A bundle with one set: the wrapped phase, modulation and texture of that set;
+// nothing absolute is written.
+void runOneSetPhase(const PhaseRequest& request, const formats::CaptureBundleReader& bundle,
+                    FringeSet set, const BundlePhaseOptions& options, const Stopwatch& total) {
+  const BundleSetPhase phase = computeBundleSetPhase(bundle, request.camera, set, options);
+  const algo::OneSetMaps& maps = phase.maps;
+  const std::string name(toString(set));
+
+  Stopwatch write_watch;
+  const fs::path out(request.out);
+  fs::create_directories(out);
+  formats::writeFloatTiff(out / ("wrapped_" + name + ".tiff"), maps.wrapped);
+  formats::writeFloatTiff(out / ("modulation_" + name + ".tiff"), maps.modulation);
+  formats::writePng(out / "texture.png", textureInFrameDepth(maps.texture, phase.bit_depth));
+  formats::writePng(out / "invalid.png", maps.invalid);
+  const double write_ms = write_watch.elapsedMs();
+
+  const double mean_modulation = meanOverValid(maps.modulation, maps.invalid);
+  if (request.json) {
+    nlohmann::json summary = {
+        {"camera", request.camera},
+        {"width", phase.size.width},
+        {"height", phase.size.height},
+        {"bit_depth", phase.bit_depth},
+        {"path", request.reference ? "reference" : "fixed-point"},
+        {"sets", {name}},
+        {"absolute", false},
+        {"note", oneSetNote(set)},
+        {"frames", {{name, bundle.frameCount(request.camera, set)}}},
+        {"own_sets", bundle.info().hasOwnSets(request.camera)},
+        {"valid_fraction", maps.valid_fraction},
+        {"mean_modulation", std::isfinite(mean_modulation) ? mean_modulation : 0.0},
+        {"timings_ms",
+         {{"read", phase.read_ms},
+          {"fold", phase.fold_ms},
+          {"finalize", phase.finalize_ms},
+          {"write", write_ms},
+          {"total", total.elapsedMs()}}},
+        {"out", out.string()}};
+    std::cout << summary.dump() << "\n";
+  } else {
+    std::cout << "phase: " << request.camera << " " << phase.size.width << "x" << phase.size.height
+              << ", " << name << " set only, valid " << maps.valid_fraction * 100.0
+              << " %, mean modulation " << mean_modulation << " counts, fold " << phase.fold_ms
+              << " ms, finalize " << phase.finalize_ms << " ms -> " << out.string() << "\n"
+              << "phase: " << oneSetNote(set) << "\n";
+  }
+}
+
 void runPhase(const PhaseRequest& request) {
   Stopwatch total;
-  formats::CaptureBundleReader bundle(request.bundle);
+  // The one reader of the one-set extension (docs/formats.md): a bundle with a
+  // single set still has a wrapped phase to give.
+  const formats::CaptureBundleReader bundle(request.bundle, {}, formats::SetsRequired::OneOrBoth);
   BundlePhaseOptions options;
   options.bit_depth = request.bit_depth;
   options.min_modulation = request.min_modulation;
   options.reference = request.reference;
+  if (const std::optional<FringeSet> only = onlySetOf(bundle, request.camera)) {
+    runOneSetPhase(request, bundle, *only, options, total);
+    return;
+  }
   const BundlePhase phase = computeBundlePhase(bundle, request.camera, options);
   const algo::PhaseMaps& maps = phase.maps;
 
@@ -73,6 +136,8 @@ void runPhase(const PhaseRequest& request) {
         {"height", phase.size.height},
         {"bit_depth", phase.bit_depth},
         {"path", request.reference ? "reference" : "fixed-point"},
+        {"sets", {"high", "low"}},
+        {"absolute", true},
         {"frames",
          {{"high", bundle.frameCount(request.camera, FringeSet::High)},
           {"low", bundle.frameCount(request.camera, FringeSet::Low)}}},
@@ -102,7 +167,8 @@ void runPhase(const PhaseRequest& request) {
 
 void addPhaseCommand(CLI::App& app) {
   auto request = std::make_shared<PhaseRequest>();
-  CLI::App* cmd = app.add_subcommand("phase", "absolute phase maps of one camera of a bundle");
+  CLI::App* cmd = app.add_subcommand(
+      "phase", "absolute phase maps of one camera of a bundle (wrapped only for one set)");
   cmd->add_option("bundle", request->bundle, "capture bundle directory")->required();
   cmd->add_option("--out", request->out, "output directory")->required();
   cmd->add_option("--camera", request->camera, "camera name (default: main)");

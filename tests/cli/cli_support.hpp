@@ -7,10 +7,12 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
 #include "formats/capture_bundle.hpp"
@@ -81,6 +83,19 @@ inline SyntheticBundle writeSyntheticBundle(const std::filesystem::path& dir, cv
   }
   writer.commit();
   return truth;
+}
+
+// Turns a bundle into one recorded with a single fringe set (the one-set
+// extension, read only by `cylscan phase`): `set` leaves capture.json's "sets",
+// and its frame directories go.
+inline void removeFringeSet(const std::filesystem::path& dir, FringeSet set) {
+  const std::filesystem::path json_path = dir / "capture.json";
+  nlohmann::json capture = nlohmann::json::parse(std::ifstream(json_path));
+  const std::string name(toString(set));
+  capture["sets"].erase(name);
+  for (const auto& camera : capture["cameras"])
+    std::filesystem::remove_all(dir / camera.get<std::string>() / name);
+  std::ofstream(json_path, std::ios::trunc) << capture.dump();
 }
 
 }  // namespace cylscan::test

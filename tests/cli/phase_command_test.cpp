@@ -2,6 +2,7 @@
 // `cylscan phase` run as a user runs it: outputs, JSON summary, exit codes.
 #include <cmath>
 #include <fstream>
+#include <string>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -73,6 +74,92 @@ TEST(PhaseCommand, ReferencePathAgreesWithTheFixedPointPath) {
   double worst = 0;
   cv::minMaxLoc(diff, nullptr, &worst);
   EXPECT_LT(worst, 4e-3);
+}
+
+// A bundle with the high set only: the same high frames as a two-set bundle,
+// whose wrapped_high.tiff the one-set run must reproduce on either path.
+TEST(PhaseCommand, OneSetBundleGivesTheWrappedPhaseOfItsSetAndNoAbsolutePhase) {
+  TempDir tmp;
+  const fs::path two = tmp.path() / "two";
+  const fs::path one = tmp.path() / "one";
+  writeSyntheticBundle(two, {64, 48});
+  writeSyntheticBundle(one, {64, 48});
+  removeFringeSet(one, FringeSet::Low);
+  for (const std::string path : {"", "--reference "}) {
+    SCOPED_TRACE(path.empty() ? "fixed point" : "reference");
+    const fs::path out_two = tmp.path() / ("out_two" + path.substr(0, 3));
+    const fs::path out_one = tmp.path() / ("out_one" + path.substr(0, 3));
+    ASSERT_EQ(runTool("phase " + path + "--out " + out_two.string() + " " + two.string()).exit_code,
+              0);
+    const auto run =
+        runTool("phase --json " + path + "--out " + out_one.string() + " " + one.string());
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+
+    for (const char* name :
+         {"wrapped_high.tiff", "modulation_high.tiff", "texture.png", "invalid.png"}) {
+      EXPECT_TRUE(fs::exists(out_one / name)) << name;
+    }
+    for (const char* name : {"wrapped_low.tiff", "absolute.tiff", "fused.tiff"}) {
+      EXPECT_FALSE(fs::exists(out_one / name)) << name;
+    }
+    const auto summary = nlohmann::json::parse(run.output);
+    EXPECT_EQ(summary.at("absolute"), false);
+    EXPECT_EQ(summary.at("sets"), nlohmann::json::array({"high"}));
+    EXPECT_NE(summary.at("note").get<std::string>().find("only the high set"), std::string::npos)
+        << summary.dump();
+    EXPECT_EQ(summary.at("frames"), nlohmann::json({{"high", 12}}));
+    EXPECT_FALSE(summary.contains("order_residual"));
+    EXPECT_GT(summary.at("valid_fraction").get<double>(), 0.99);
+
+    // Tolerance 0: the one-set run folds the same frames with the same
+    // least-squares weights (their C, S scale depends on the set alone) through
+    // the same kernels and atan2 as the two-set run, so no rounding differs;
+    // any difference means the code paths have drifted apart.
+    const cv::Mat wrapped = formats::readFloatTiff(out_one / "wrapped_high.tiff");
+    const cv::Mat wrapped_two = formats::readFloatTiff(out_two / "wrapped_high.tiff");
+    ASSERT_EQ(wrapped.size(), wrapped_two.size());
+    EXPECT_EQ(cv::norm(wrapped, wrapped_two, cv::NORM_INF), 0.0);
+    const cv::Mat modulation = formats::readFloatTiff(out_one / "modulation_high.tiff");
+    EXPECT_EQ(cv::norm(modulation, formats::readFloatTiff(out_two / "modulation_high.tiff"),
+                       cv::NORM_INF),
+              0.0);
+
+    // No order is taken, so no pixel can be order-inconsistent.
+    const cv::Mat invalid = cv::imread((out_one / "invalid.png").string(), cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(invalid.type(), CV_8UC1);
+    EXPECT_EQ(cv::countNonZero(invalid & 4), 0);
+    const cv::Mat texture = cv::imread((out_one / "texture.png").string(), cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(texture.type(), CV_8UC1);
+    EXPECT_NEAR(cv::mean(texture)[0], 120.0, 1.5);  // A of the synthetic frames
+  }
+
+  const auto text = runTool("phase --out " + (tmp.path() / "text").string() + " " + one.string());
+  ASSERT_EQ(text.exit_code, 0) << text.output;
+  EXPECT_NE(text.output.find("no absolute phase"), std::string::npos) << text.output;
+  EXPECT_NE(text.output.find("only the high set"), std::string::npos) << text.output;
+}
+
+TEST(PhaseCommand, TwoSetSummarySaysItHasTheAbsolutePhase) {
+  TempDir tmp;
+  writeSyntheticBundle(tmp.path() / "bundle", {32, 24}, 4);
+  const auto run = runTool("phase --json --out " + (tmp.path() / "out").string() + " " +
+                           (tmp.path() / "bundle").string());
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const auto summary = nlohmann::json::parse(run.output);
+  EXPECT_EQ(summary.at("absolute"), true);
+  EXPECT_EQ(summary.at("sets"), nlohmann::json::array({"high", "low"}));
+}
+
+TEST(PhaseCommand, BundleWithoutAnySetIsBadInputNamingCaptureJson) {
+  TempDir tmp;
+  const fs::path bundle = tmp.path() / "bundle";
+  writeSyntheticBundle(bundle, {32, 24}, 4);
+  removeFringeSet(bundle, FringeSet::Low);
+  removeFringeSet(bundle, FringeSet::High);
+  const auto run = runTool("phase --out " + (tmp.path() / "out").string() + " " + bundle.string());
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("capture.json"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("neither set"), std::string::npos) << run.output;
 }
 
 TEST(PhaseCommand, MissingBundleIsBadInputNamingTheFile) {

@@ -218,6 +218,20 @@ TEST_F(ReconstructCommand, StereoNeedsAnAuxCameraAndTheCalibratedSize) {
   EXPECT_NE(run.output.find("640x480"), std::string::npos) << run.output;
 }
 
+// The one-set extension is `cylscan phase`'s alone: reconstruct needs the
+// absolute phase and refuses the bundle as the contract says.
+TEST_F(ReconstructCommand, OneSetBundleIsBadInputNamingCaptureJson) {
+  writeCalibration(path("calib.qcal"), size_, truth_.absolute);
+  removeFringeSet(mainOnly(), FringeSet::Low);
+  const auto run =
+      runTool("reconstruct --calib " + path("calib.qcal").string() + out() + mainOnly().string());
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find((mainOnly() / "capture.json").string()), std::string::npos)
+      << run.output;
+  EXPECT_NE(run.output.find("missing set \"low\""), std::string::npos) << run.output;
+  EXPECT_FALSE(fs::exists(path("cloud.ply")));
+}
+
 TEST_F(ReconstructCommand, MissingBundleIsBadInput) {
   writeCalibration(path("calib.qcal"), size_);
   const auto run = runTool("reconstruct --calib " + path("calib.qcal").string() + out() +
