@@ -51,6 +51,35 @@ std::string oneSetNote(FringeSet set) {
          " set, and unwrapping needs both \"high\" and \"low\"";
 }
 
+// What both kinds of run print in their JSON summary.
+struct PhaseRun {
+  cv::Size size;
+  int bit_depth = 8;
+  double valid_fraction = 0;
+  double mean_modulation = 0;  // NaN when no pixel is valid
+  double read_ms = 0, fold_ms = 0, finalize_ms = 0, write_ms = 0, total_ms = 0;
+  fs::path out;
+};
+
+nlohmann::json summaryOf(const PhaseRequest& request, const formats::CaptureBundleReader& bundle,
+                         const PhaseRun& run) {
+  return {{"camera", request.camera},
+          {"width", run.size.width},
+          {"height", run.size.height},
+          {"bit_depth", run.bit_depth},
+          {"path", request.reference ? "reference" : "fixed-point"},
+          {"own_sets", bundle.info().hasOwnSets(request.camera)},
+          {"valid_fraction", run.valid_fraction},
+          {"mean_modulation", std::isfinite(run.mean_modulation) ? run.mean_modulation : 0.0},
+          {"timings_ms",
+           {{"read", run.read_ms},
+            {"fold", run.fold_ms},
+            {"finalize", run.finalize_ms},
+            {"write", run.write_ms},
+            {"total", run.total_ms}}},
+          {"out", run.out.string()}};
+}
+
 // A bundle with one set: the wrapped phase, modulation and texture of that set;
 // nothing absolute is written.
 void runOneSetPhase(const PhaseRequest& request, const formats::CaptureBundleReader& bundle,
@@ -70,26 +99,14 @@ void runOneSetPhase(const PhaseRequest& request, const formats::CaptureBundleRea
 
   const double mean_modulation = meanOverValid(maps.modulation, maps.invalid);
   if (request.json) {
-    nlohmann::json summary = {
-        {"camera", request.camera},
-        {"width", phase.size.width},
-        {"height", phase.size.height},
-        {"bit_depth", phase.bit_depth},
-        {"path", request.reference ? "reference" : "fixed-point"},
-        {"sets", {name}},
-        {"absolute", false},
-        {"note", oneSetNote(set)},
-        {"frames", {{name, bundle.frameCount(request.camera, set)}}},
-        {"own_sets", bundle.info().hasOwnSets(request.camera)},
-        {"valid_fraction", maps.valid_fraction},
-        {"mean_modulation", std::isfinite(mean_modulation) ? mean_modulation : 0.0},
-        {"timings_ms",
-         {{"read", phase.read_ms},
-          {"fold", phase.fold_ms},
-          {"finalize", phase.finalize_ms},
-          {"write", write_ms},
-          {"total", total.elapsedMs()}}},
-        {"out", out.string()}};
+    nlohmann::json summary =
+        summaryOf(request, bundle,
+                  {phase.size, phase.bit_depth, maps.valid_fraction, mean_modulation, phase.read_ms,
+                   phase.fold_ms, phase.finalize_ms, write_ms, total.elapsedMs(), out});
+    summary["sets"] = {name};
+    summary["absolute"] = false;
+    summary["note"] = oneSetNote(set);
+    summary["frames"] = {{name, bundle.frameCount(request.camera, set)}};
     std::cout << summary.dump() << "\n";
   } else {
     std::cout << "phase: " << request.camera << " " << phase.size.width << "x" << phase.size.height
@@ -130,28 +147,15 @@ void runPhase(const PhaseRequest& request) {
 
   const double mean_modulation = meanOverValid(maps.modulation_high, maps.invalid);
   if (request.json) {
-    nlohmann::json summary = {
-        {"camera", request.camera},
-        {"width", phase.size.width},
-        {"height", phase.size.height},
-        {"bit_depth", phase.bit_depth},
-        {"path", request.reference ? "reference" : "fixed-point"},
-        {"sets", {"high", "low"}},
-        {"absolute", true},
-        {"frames",
-         {{"high", bundle.frameCount(request.camera, FringeSet::High)},
-          {"low", bundle.frameCount(request.camera, FringeSet::Low)}}},
-        {"own_sets", bundle.info().hasOwnSets(request.camera)},
-        {"valid_fraction", maps.valid_fraction},
-        {"order_residual", firmware::orderResidualJson(maps.order_residual)},
-        {"mean_modulation", std::isfinite(mean_modulation) ? mean_modulation : 0.0},
-        {"timings_ms",
-         {{"read", phase.read_ms},
-          {"fold", phase.fold_ms},
-          {"finalize", phase.finalize_ms},
-          {"write", write_ms},
-          {"total", total.elapsedMs()}}},
-        {"out", out.string()}};
+    nlohmann::json summary =
+        summaryOf(request, bundle,
+                  {phase.size, phase.bit_depth, maps.valid_fraction, mean_modulation, phase.read_ms,
+                   phase.fold_ms, phase.finalize_ms, write_ms, total.elapsedMs(), out});
+    summary["sets"] = {"high", "low"};
+    summary["absolute"] = true;
+    summary["frames"] = {{"high", bundle.frameCount(request.camera, FringeSet::High)},
+                         {"low", bundle.frameCount(request.camera, FringeSet::Low)}};
+    summary["order_residual"] = firmware::orderResidualJson(maps.order_residual);
     std::cout << summary.dump() << "\n";
   } else {
     std::cout << "phase: " << request.camera << " " << phase.size.width << "x" << phase.size.height
