@@ -161,6 +161,38 @@ class EndToEnd : public ::testing::Test {
     expectFocalWithin(estimated.camera_matrix_main, truth.camera_matrix_main, 0.01, "main");
     expectFocalWithin(estimated.camera_matrix_aux, truth.camera_matrix_aux, 0.01, "aux");
     EXPECT_NEAR(cv::norm(estimated.T) / cv::norm(truth.T), 1.0, 0.01);
+    checkJointRefinement(summary);
+  }
+
+  // --refine-jointly writes intrinsics that stereoCalibrate moved, so the RMS
+  // it prints per camera must be theirs: the root mean square of its pairs'
+  // reprojection errors (which the joint fit gives per view), and the stereo
+  // RMS their mean square. The separate fits' RMS differs from it.
+  void checkJointRefinement(const json& separate) {
+    const auto run =
+        runTool("calibrate-stereo --json --refine-jointly --board " + (data() / "board").string() +
+                " --out " + out("stereo_joint.yaml").string());
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    const json joint = parseJson(run);
+    EXPECT_EQ(joint.at("refinement"), "joint");
+    double main_sq = 0, aux_sq = 0;
+    for (const json& view : joint.at("views")) {
+      main_sq += std::pow(view.at("main_rms_px").get<double>(), 2);
+      aux_sq += std::pow(view.at("aux_rms_px").get<double>(), 2);
+    }
+    const auto n = static_cast<double>(joint.at("views").size());
+    ASSERT_GT(n, 0);
+    const double main_rms = joint.at("main").at("rms_px").get<double>();
+    const double aux_rms = joint.at("aux").at("rms_px").get<double>();
+    EXPECT_NEAR(main_rms, std::sqrt(main_sq / n), 1e-9 * main_rms);
+    EXPECT_NEAR(aux_rms, std::sqrt(aux_sq / n), 1e-9 * aux_rms);
+    // The joint fit's RMS over both cameras' points (equal counts per pair).
+    EXPECT_NEAR(joint.at("stereo_rms_px").get<double>(), std::sqrt((main_sq + aux_sq) / (2 * n)),
+                1e-6);
+    EXPECT_NE(main_rms, separate.at("main").at("rms_px").get<double>());
+    std::cout << "[e2e] calibrate-stereo --refine-jointly: main " << main_rms << " px, aux "
+              << aux_rms << " px (separate fits " << separate.at("main").at("rms_px") << ", "
+              << separate.at("aux").at("rms_px") << ")\n";
   }
 
   void checkQuasiCalibration() {
