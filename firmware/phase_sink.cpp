@@ -6,13 +6,6 @@
 #include <string>
 
 namespace cylscan::firmware {
-namespace {
-
-FringeSet engineSet(FringeSet id) {
-  return id == FringeSet::High ? FringeSet::High : FringeSet::Low;
-}
-
-}  // namespace
 
 PhaseSink::PhaseSink(const ScanPlan& plan, const algo::PhaseOptions& options)
     : plan_(plan), options_(options) {}
@@ -56,7 +49,7 @@ void PhaseSink::onFrame(std::string_view name, FringeSet set, int k, double stag
                            " of the " + std::string(toString(set)) + " set was exposed at " +
                            std::to_string(stage_deg) + " deg, planned " + std::to_string(planned));
   }
-  c.engine.fold(engineSet(set), k, image);
+  c.engine.fold(set, k, image);
   ++c.folded;
 }
 

@@ -13,10 +13,6 @@
 namespace cylscan::tools {
 namespace {
 
-FringeSet toAlgo(FringeSet id) {
-  return id == FringeSet::High ? FringeSet::High : FringeSet::Low;
-}
-
 algo::FringeSetGeometry geometryOf(const formats::FringeSetInfo& set) {
   return {set.period_deg, set.stage_deg};
 }
@@ -112,7 +108,7 @@ BundlePhase computeBundlePhase(const formats::CaptureBundleReader& bundle,
   // Streaming: each frame is folded in as soon as it is read; none is kept.
   for (const auto set : kFringeSets) {
     foldSet(bundle, camera, set, set == FringeSet::High ? first : cv::Mat(), watch, out,
-            [&](int k, const cv::Mat& frame) { engine.fold(toAlgo(set), k, frame); });
+            [&](int k, const cv::Mat& frame) { engine.fold(set, k, frame); });
   }
   watch.lapMs();
   out.maps = engine.finalize();
@@ -144,8 +140,7 @@ BundleSetPhase computeBundleSetPhase(const formats::CaptureBundleReader& bundle,
   out.bit_depth = engine_options.bit_depth;
   std::optional<algo::OneSetPhase> engine;
   try {
-    engine.emplace(out.size, toAlgo(set), geometryOf(bundle.info().setOf(camera, set)),
-                   engine_options);
+    engine.emplace(out.size, set, geometryOf(bundle.info().setOf(camera, set)), engine_options);
   } catch (const std::invalid_argument& e) {  // includes ShiftSolveError
     throw formats::InputError(bundle.dir() / "capture.json", e.what());
   }

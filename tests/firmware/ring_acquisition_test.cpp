@@ -276,8 +276,7 @@ TEST(RingAcquisition, EveryCameraGetsBothSetsInItsRoleAndTheHeadsPhase) {
                               geometryOf(FringeSet::Low), {});
     for (const FringeSet id : kFringeSets) {
       for (int k = 0; k < reader.frameCount(camera, id); ++k)
-        offline.fold(id == FringeSet::High ? FringeSet::High : FringeSet::Low, k,
-                     reader.readFrame(camera, id, k));
+        offline.fold(id, k, reader.readFrame(camera, id, k));
     }
     const algo::PhaseMaps a = phase.finalize(camera);
     const algo::PhaseMaps b = offline.finalize();
