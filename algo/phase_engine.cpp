@@ -15,10 +15,6 @@
 namespace cylscan::algo {
 namespace {
 
-int index(FringeSet set) {
-  return set == FringeSet::High ? 0 : 1;
-}
-
 cv::Size checkedSize(cv::Size size) {
   if (size.width <= 0 || size.height <= 0) {
     throw std::invalid_argument("PhaseEngine: image size " + std::to_string(size.width) + "x" +
@@ -163,7 +159,7 @@ struct PhaseEngine::Impl {
   }
 
   bool complete(FringeSet set) const {
-    return count[index(set)] == static_cast<int>(folded[index(set)].size());
+    return count[fringeSetIndex(set)] == static_cast<int>(folded[fringeSetIndex(set)].size());
   }
 
   PipelineSetup setup;
@@ -185,21 +181,21 @@ PhaseEngine& PhaseEngine::operator=(PhaseEngine&&) noexcept = default;
 
 void PhaseEngine::fold(FringeSet set, int k, const cv::Mat& frame) {
   Impl& im = *impl_;
-  const int n = static_cast<int>(im.folded[index(set)].size());
+  const int n = static_cast<int>(im.folded[fringeSetIndex(set)].size());
   if (k < 0 || k >= n) {
     throw std::out_of_range(where(set, k) + "the " + std::string(toString(set)) + " set has " +
                             std::to_string(n) + " frames (k = 0.." + std::to_string(n - 1) + ")");
   }
   checkFoldFrame(set, k, frame, im.setup.size, im.setup.options.bit_depth);
-  if (im.folded[index(set)][static_cast<std::size_t>(k)]) {
+  if (im.folded[fringeSetIndex(set)][static_cast<std::size_t>(k)]) {
     throw std::logic_error(where(set, k) + "frame " + std::to_string(k) + " of the " +
                            std::string(toString(set)) + " set was already folded");
   }
   if (im.active && *im.active != set) {
     const FringeSet a = *im.active;
     throw std::logic_error(where(set, k) + "the " + std::string(toString(a)) + " set has " +
-                           std::to_string(im.count[index(a)]) + " of " +
-                           std::to_string(im.folded[index(a)].size()) +
+                           std::to_string(im.count[fringeSetIndex(a)]) + " of " +
+                           std::to_string(im.folded[fringeSetIndex(a)].size()) +
                            " frames folded; fold all frames of one set before the other");
   }
   if (!im.active) {
@@ -207,8 +203,8 @@ void PhaseEngine::fold(FringeSet set, int k, const cv::Mat& frame) {
     im.active = set;
   }
   im.pipeline->fold(set, k, frame);
-  im.folded[index(set)][static_cast<std::size_t>(k)] = true;
-  ++im.count[index(set)];
+  im.folded[fringeSetIndex(set)][static_cast<std::size_t>(k)] = true;
+  ++im.count[fringeSetIndex(set)];
   if (im.complete(set)) im.active.reset();
 }
 

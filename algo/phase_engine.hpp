@@ -56,6 +56,9 @@ struct OrderResidual {
   double spread_rad = 0;
   double bound_rad = 0;
   std::size_t samples = 0;  // well-modulated pixels it was measured on; 0: not measured
+  // Pixels beyond the bound whose orders their trusted neighbours decided
+  // (algo/neighbour_orders.hpp); they count as valid.
+  std::size_t decided_by_neighbours = 0;
 };
 
 enum InvalidReason : std::uint8_t {

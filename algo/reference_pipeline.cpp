@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "algo/neighbour_orders.hpp"
 #include "algo/order_residual.hpp"
 #include "algo/phase_pipeline.hpp"
 
@@ -16,10 +17,6 @@ namespace cylscan::algo {
 namespace {
 
 constexpr double kTwoPi = 2 * std::numbers::pi;
-
-int index(FringeSet set) {
-  return set == FringeSet::High ? 0 : 1;
-}
 
 class ReferencePipeline final : public PhasePipeline {
  public:
@@ -35,7 +32,7 @@ class ReferencePipeline final : public PhasePipeline {
   void beginSet(FringeSet) override {}
 
   void fold(FringeSet set, int k, const cv::Mat& frame) override {
-    const int i = index(set);
+    const int i = fringeSetIndex(set);
     foldReferenceFrame(setup_.weights(set).frame(static_cast<std::size_t>(k)), frame,
                        setup_.options, sum_c_[i].data(), sum_s_[i].data(), sum_a_[i].data(),
                        saturated_.data());
@@ -78,6 +75,7 @@ class ReferencePipeline final : public PhasePipeline {
       maps.invalid.ptr<std::uint8_t>()[p] = bad;
       valid += bad == 0 ? 1 : 0;
     }
+    valid += decideFromNeighbours(maps, centre);
     maps.valid_fraction = static_cast<double>(valid) / static_cast<double>(pixels_);
   }
 
@@ -95,6 +93,42 @@ class ReferencePipeline final : public PhasePipeline {
   }
 
  private:
+  // The fixed path's neighbour rule (algo/neighbour_orders.hpp) in radians.
+  std::size_t decideFromNeighbours(PhaseMaps& maps, double centre) const {
+    const double seam = kTwoPi * setup_.unwrapper.ordersHigh();
+    const double quarter = kTwoPi / 4;
+    const float* absolute = maps.absolute.ptr<float>();
+    const auto absolute_of = [&](std::size_t j) { return static_cast<double>(absolute[j]); };
+    const auto decide = [&](std::size_t i, double mean) {
+      const double phi_h = referenceWrappedPhase(sum_s_[0][i], sum_c_[0][i]);
+      const double phi_l = referenceWrappedPhase(sum_s_[1][i], sum_c_[1][i]);
+      const ReferenceOrders orders = setup_.unwrapper.unwrap(phi_h, phi_l, centre);
+      const int step = orders.residual_rad > 0 ? 1 : -1;
+      const int orders_high = setup_.unwrapper.ordersHigh();
+      const int orders_low = setup_.unwrapper.ordersLow();
+      for (const int d : {0, step}) {
+        const int high = (orders.high + d + orders_high) % orders_high;
+        const double absolute_high = phi_h + kTwoPi * high;
+        const double off = std::remainder(absolute_high - mean, seam);
+        if (std::abs(off) > quarter) continue;
+        const int low = (orders.low + d + orders_low) % orders_low;
+        const double absolute_low = phi_l + kTwoPi * low;
+        const double b_h = std::hypot(sum_c_[0][i], sum_s_[0][i]);
+        const double b_l = std::hypot(sum_c_[1][i], sum_s_[1][i]);
+        maps.fringe_order.ptr<std::int16_t>()[i] = static_cast<std::int16_t>(high);
+        maps.absolute.ptr<float>()[i] = static_cast<float>(absolute_high);
+        maps.fused.ptr<float>()[i] =
+            static_cast<float>(setup_.fusion.fuse(absolute_high, absolute_low, b_h, b_l));
+        return true;
+      }
+      return false;
+    };
+    maps.order_residual.decided_by_neighbours =
+        algo::decideOrdersFromNeighbours(setup_.size, maps.invalid.ptr<std::uint8_t>(),
+                                         kOrderInconsistent, quarter, absolute_of, decide);
+    return maps.order_residual.decided_by_neighbours;
+  }
+
   // The scan's residual rule from the same sample of pixels as the fixed path,
   // its residuals quantised to the fixed path's unit.
   ResidualRule residualRule() const {

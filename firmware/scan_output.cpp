@@ -323,7 +323,8 @@ nlohmann::json orderResidualJson(const algo::OrderResidual& residual) {
   return {{"centre_rad", residual.centre_rad},
           {"spread_rad", residual.spread_rad},
           {"bound_rad", residual.bound_rad},
-          {"samples", residual.samples}};
+          {"samples", residual.samples},
+          {"decided_by_neighbours", residual.decided_by_neighbours}};
 }
 
 }  // namespace cylscan::firmware

@@ -143,6 +143,7 @@ algo::OrderResidual residualFrom(const Fields& f) {
   f.read("spread_rad", r.spread_rad);
   f.read("bound_rad", r.bound_rad);
   f.read("samples", r.samples);
+  f.read("decided_by_neighbours", r.decided_by_neighbours);
   return r;
 }
 

@@ -826,6 +826,9 @@ std::string ScanService::metricsText() const {
     w.gauge("cylscan_order_residual_bound_radians",
             "The residual bound beyond which the last scan's orders were not trusted.",
             residual->bound_rad);
+    w.gauge("cylscan_order_residual_decided_by_neighbours",
+            "Pixels of the last scan beyond the bound whose orders their neighbours decided.",
+            static_cast<double>(residual->decided_by_neighbours));
   }
   return w.text();
 }

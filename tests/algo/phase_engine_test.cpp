@@ -568,6 +568,69 @@ TEST(PhaseEngine, CompactFinalizeMatchesFullFinalize) {
   }
 }
 
+// Isolated pixels whose low phase is off by 0.335 or 0.36 rad have a residual
+// of −3.02 rad (their rounded order still right) or +3.04 rad (rounded one
+// order low): both beyond the bound, which stays π/2 because those residuals
+// lie near ±π, where the gap rule does not move it. Each sits among 8 trusted
+// pixels of a smooth ramp, so its neighbours decide its order, and Φ (of the
+// uncorrupted high set) is right. In a 4×4 block of them only the corners
+// have 5 trusted neighbours; the other 12 pixels stay invalid.
+TEST(PhaseEngine, NeighboursDecideTheOrdersOfIsolatedAmbiguousPixels) {
+  Scene scene = testing::rampScene(smallSize(), 110, 80);
+  scene.low_offset = cv::Mat::zeros(smallSize(), CV_64F);
+  std::vector<cv::Point> isolated;
+  for (int y = 4; y < 92; y += 8) {
+    for (int x = 4; x < 96; x += 8) {
+      scene.low_offset.at<double>(y, x) = (x / 8 + y / 8) % 2 == 0 ? 0.335 : 0.36;
+      isolated.emplace_back(x, y);
+    }
+  }
+  const cv::Rect block(108, 40, 4, 4);
+  scene.low_offset(block).setTo(0.335);
+  const std::size_t decided = isolated.size() + 4;
+  for (bool fixed : {true, false}) {
+    const std::string what = fixed ? "fixed" : "reference";
+    const PhaseMaps maps =
+        runScan(scene, deviceHigh(), deviceLow(), fixed ? fixedOptions() : referenceOptions(), 0.5);
+    EXPECT_NEAR(maps.order_residual.bound_rad, std::numbers::pi / 2, 1e-6) << what;
+    EXPECT_EQ(maps.order_residual.decided_by_neighbours, decided) << what;
+    for (const cv::Point& p : isolated) {
+      ASSERT_EQ(maps.invalid.at<std::uint8_t>(p), kValid) << what << " " << p;
+      const double truth = scene.absolute_high.at<double>(p);
+      ASSERT_NEAR(maps.absolute.at<float>(p), truth, 0.05) << what << " " << p;
+      ASSERT_EQ(maps.fringe_order.at<std::int16_t>(p), expectedOrder(truth)) << what << " " << p;
+      ASSERT_TRUE(std::isfinite(maps.fused.at<float>(p))) << what << " " << p;
+    }
+    int block_invalid = 0;
+    for (int y = block.y; y < block.br().y; ++y)
+      for (int x = block.x; x < block.br().x; ++x)
+        block_invalid += maps.invalid.at<std::uint8_t>(y, x) == kOrderInconsistent;
+    EXPECT_EQ(block_invalid, 12) << what;
+    EXPECT_NEAR(maps.valid_fraction, 1.0 - 12.0 / smallSize().area(), 1e-12) << what;
+  }
+  // The device's compact finalize decides the same pixels, to the bit, with
+  // every kernel build this CPU runs.
+  for (KernelIsa isa : {KernelIsa::kBaseline, KernelIsa::kAvx2, KernelIsa::kAvx512}) {
+    if (resolveKernelIsa(isa) != isa) continue;  // not on this CPU
+    PhaseOptions o = fixedOptions();
+    o.kernel_isa = isa;
+    PhaseEngine engine(smallSize(), deviceHigh(), deviceLow(), o);
+    testing::FringeRenderer renderer(scene, 8, 0.5, 5);
+    for (FringeSet set : {FringeSet::High, FringeSet::Low}) {
+      const FringeSetGeometry& g = set == FringeSet::High ? deviceHigh() : deviceLow();
+      for (int k = 0; k < 25; ++k)
+        engine.fold(set, k, renderer.render(set, g, k));
+    }
+    CompactPhase compact;
+    engine.finalizeCompact(compact);
+    const PhaseMaps maps = engine.finalize();
+    const std::string what = "isa " + std::to_string(static_cast<int>(isa));
+    expectCompactMatchesFull(compact, maps, 8, what);
+    EXPECT_EQ(compact.order_residual.decided_by_neighbours, decided) << what;
+    EXPECT_EQ(maps.order_residual.decided_by_neighbours, decided) << what;
+  }
+}
+
 TEST(PhaseEngine, CompactFinalizeNeedsTheFixedPathAndAllFrames) {
   CompactPhase out;
   PhaseEngine fixed(smallSize(), deviceHigh(), deviceLow(), fixedOptions());

@@ -47,8 +47,9 @@ ScanRecord done() {
   r.duration_s = 8.5;
   r.frames_done = 10;
   r.files = {"cloud.ply", "depth.tiff", "texture.png", "phase.png", "depth.png"};
-  r.output = OutputFigures{PhaseSource::Fused, 0.625, algo::OrderResidual{-1.25, 0.0625, 1.5, 8000},
-                           std::size_t{12800}, std::nullopt};
+  r.output =
+      OutputFigures{PhaseSource::Fused, 0.625, algo::OrderResidual{-1.25, 0.0625, 1.5, 8000, 37},
+                    std::size_t{12800}, std::nullopt};
   r.acquisition = acquisition();
   r.bundle = "bundle";
   return r;
@@ -92,7 +93,7 @@ TEST(ScanRecord, ADoneScanAddsTheOutputsAndTheAcquisitionsFigures) {
     "options": {"frames": 5, "mode": "stop"}, "frames": 10, "frames_done": 10,
     "calibrated": true, "phase": "fused", "phase_valid_fraction": 0.625,
     "order_residual": {"centre_rad": -1.25, "spread_rad": 0.0625, "bound_rad": 1.5,
-                       "samples": 8000},
+                       "samples": 8000, "decided_by_neighbours": 37},
     "files": ["cloud.ply", "depth.tiff", "texture.png", "phase.png", "depth.png"],
     "points": 12800,
     "retries": 1, "homed": true, "realtime": false, "board_seconds": 38.25,

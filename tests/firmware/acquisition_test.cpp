@@ -734,7 +734,9 @@ FewStepScan scanFewSteps(int n, double gamma) {
   out.wrong = valid > 0 ? static_cast<double>(out.scan.error.wrong) / valid : 1;
   print("N " + frames + ", gamma " + std::to_string(gamma), out.scan);
   std::cout << "[head] coverage " << out.coverage << " of " << modulated << " modulated, wrong "
-            << out.wrong << ", bound " << out.scan.maps.order_residual.bound_rad << "\n";
+            << out.wrong << ", bound " << out.scan.maps.order_residual.bound_rad
+            << ", decided by neighbours " << out.scan.maps.order_residual.decided_by_neighbours
+            << "\n";
   return out;
 }
 
