@@ -9,6 +9,7 @@
 #include "formats/atomic_file.hpp"
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
+#include "formats/rotation.hpp"
 
 namespace cylscan::formats {
 namespace {
@@ -17,7 +18,6 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 constexpr double kMaxTranslationMm = 1e5;
-constexpr double kRotationTolerance = 1e-6;
 
 class Checker {
  public:
@@ -62,21 +62,10 @@ class Checker {
 
  private:
   void checkRotation(const CameraPose& pose, const std::string& field) const {
-    double worst = 0;
-    for (std::size_t i = 0; i < 3; ++i) {
-      for (std::size_t j = 0; j < 3; ++j) {
-        double dot = 0;
-        for (std::size_t k = 0; k < 3; ++k)
-          dot += pose.R[i][k] * pose.R[j][k];
-        worst = std::max(worst, std::abs(dot - (i == j ? 1.0 : 0.0)));
-      }
-    }
-    if (worst > kRotationTolerance) fail(field, "is not a rotation (rows not orthonormal to 1e-6)");
     const auto& m = pose.R;
-    const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-                       m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-                       m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    if (det < 0) fail(field, "is a reflection (determinant −1), not a rotation");
+    const cv::Matx33d r(m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1],
+                        m[2][2]);
+    if (auto fault = rotationFault(r)) fail(field, *fault);
   }
 
   fs::path source_;

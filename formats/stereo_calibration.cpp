@@ -12,6 +12,7 @@
 #include "formats/atomic_file.hpp"
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
+#include "formats/rotation.hpp"
 
 namespace cylscan::formats {
 namespace {
@@ -19,7 +20,6 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr std::uintmax_t kMaxFileBytes = 1u << 20;
-constexpr double kRotationTolerance = 1e-6;
 
 struct NodeFault {
   std::string node;
@@ -65,15 +65,7 @@ std::optional<NodeFault> calibrationFault(const StereoCalibration& c) {
     return NodeFault{"dist_coeffs_aux", "contains a value that is not finite"};
   }
   if (!allFinite(c.R)) return NodeFault{"R", "contains a value that is not finite"};
-  const double orthogonality = cv::norm(c.R.t() * c.R - cv::Matx33d::eye(), cv::NORM_INF);
-  if (orthogonality > kRotationTolerance) {
-    return NodeFault{"R", "is not a rotation: max |R^T R - I| = " + number(orthogonality) + " > " +
-                              number(kRotationTolerance)};
-  }
-  const double det = cv::determinant(c.R);
-  if (std::abs(det - 1) > kRotationTolerance) {
-    return NodeFault{"R", "is not a rotation: its determinant is " + number(det) + ", not +1"};
-  }
+  if (auto fault = rotationFault(c.R)) return NodeFault{"R", *fault};
   if (!allFinite(cv::Matx31d(c.T.val)))
     return NodeFault{"T", "contains a value that is not finite"};
   return std::nullopt;
