@@ -44,6 +44,7 @@
 #include "tools/bundle_phase.hpp"
 #include "tools/commands.hpp"
 #include "tools/plane_pose.hpp"
+#include "tools/scene_truth.hpp"
 #include "tools/stereo_geometry.hpp"
 #include "tools/stopwatch.hpp"
 
@@ -92,10 +93,6 @@ std::size_t finiteCount(const cv::Mat& phase) {
   return count;
 }
 
-nlohmann::json vec(const Eigen::Vector3d& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
 // The poses' median order-residual spread, over those that measured one.
 double medianSpread(const std::vector<PlanePose>& poses) {
   std::vector<double> spreads;
@@ -124,7 +121,7 @@ nlohmann::json summaryJson(const CalibrateRequest& request, const std::vector<Pl
          {"stereo_points", p.stereo_points},
          {"plane_inliers", p.plane_inliers},
          {"plane_fit_rmse_mm", p.plane_rmse_mm},
-         {"plane", {{"point", vec(p.plane.point)}, {"normal", vec(p.plane.normal)}}},
+         {"plane", {{"point", vec3Json(p.plane.point)}, {"normal", vec3Json(p.plane.normal)}}},
          {"main_valid_fraction", p.main_valid_fraction},
          {"aux_valid_fraction", p.aux_valid_fraction},
          {"order_residual", firmware::orderResidualJson(p.order_residual)},

@@ -88,10 +88,6 @@ auto fitOrInputError(const fs::path& file, Fit fit) {
   }
 }
 
-nlohmann::json vec(const Eigen::Vector3d& v) {
-  return {v.x(), v.y(), v.z()};
-}
-
 // NaN (an empty region) as JSON null.
 nlohmann::json number(double value) {
   return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
@@ -116,7 +112,7 @@ std::optional<nlohmann::json> truthComparison(const EvaluateRequest& request,
   const auto* sphere =
       truth.shapes().size() == 1 ? std::get_if<algo::Sphere>(&truth.shapes().front()) : nullptr;
   if (sphere != nullptr) {
-    out["center"] = vec(sphere->centre);
+    out["center"] = vec3Json(sphere->centre);
     out["radius_mm"] = sphere->radius;
   }
   return out;
@@ -148,7 +144,7 @@ void runPlane(const EvaluateRequest& request) {
         {"points", fit.count},
         {"dropped_points", cloud.dropped},
         {"rmse_mm", fit.rmse},
-        {"plane", {{"point", vec(fit.plane.point)}, {"normal", vec(fit.plane.normal)}}}};
+        {"plane", {{"point", vec3Json(fit.plane.point)}, {"normal", vec3Json(fit.plane.normal)}}}};
     if (regional) {
       out["regional"] = {{"central_rmse_mm", number(regional->central)},
                          {"outer_rmse_mm", number(regional->outer)},
@@ -177,7 +173,7 @@ void runSphere(const EvaluateRequest& request) {
   std::optional<nlohmann::json> truth = truthComparison(request, cloud.points);
   if (truth && truth->contains("center")) {
     (*truth)["centre_offset_mm"] =
-        vec(free.sphere.centre - jsonVec3(truth->at("center"), request.truth, "center"));
+        vec3Json(free.sphere.centre - jsonVec3(truth->at("center"), request.truth, "center"));
   }
   if (request.json) {
     nlohmann::json out{{"shape", "sphere"},
@@ -187,13 +183,13 @@ void runSphere(const EvaluateRequest& request) {
                        {"free",
                         {{"radius_mm", free.sphere.radius},
                          {"rmse_mm", free.rmse},
-                         {"centre", vec(free.sphere.centre)}}},
+                         {"centre", vec3Json(free.sphere.centre)}}},
                        {"reference",
                         {{"radius_mm", request.radius},
                          {"rmse_mm", fixed.residuals.rmse},
                          {"mean_mm", fixed.residuals.mean},
                          {"std_mm", fixed.residuals.std},
-                         {"centre", vec(fixed.sphere.centre)}}}};
+                         {"centre", vec3Json(fixed.sphere.centre)}}}};
     if (truth) out["truth"] = *truth;
     std::cout << out.dump() << "\n";
     return;

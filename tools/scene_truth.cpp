@@ -58,6 +58,10 @@ TrueShape shapeOf(const json& entry, const fs::path& file, const std::string& wh
 
 }  // namespace
 
+json vec3Json(const Eigen::Vector3d& v) {
+  return {v.x(), v.y(), v.z()};
+}
+
 Eigen::Vector3d jsonVec3(const json& j, const fs::path& file, const std::string& key) {
   if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() || !j[2].is_number())
     throw formats::InputError(file, "'" + key + "' must be an array of 3 numbers");

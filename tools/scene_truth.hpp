@@ -50,5 +50,7 @@ class SceneTruth {
 
 Eigen::Vector3d jsonVec3(const nlohmann::json& j, const std::filesystem::path& file,
                          const std::string& key);
+// A point or direction as the JSON array jsonVec3 reads.
+nlohmann::json vec3Json(const Eigen::Vector3d& v);
 
 }  // namespace cylscan::tools
