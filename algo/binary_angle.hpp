@@ -78,11 +78,15 @@ inline BinaryPolar binaryPolar(std::int32_t s, std::int32_t c) {
   // The one division: IEEE-754 single precision, correctly rounded, reproducible.
   const float den_f = static_cast<float>(static_cast<std::int32_t>(den));
   const float ratio = static_cast<float>(static_cast<std::int32_t>(num)) / den_f;
-  const auto t_q15 = static_cast<std::uint32_t>(static_cast<std::int32_t>(ratio * 32768.0f + 0.5f));
-  std::uint32_t a = octantAtanQ15(t_q15);  // 2^-19 turn, [0, 2^16]
-  a += steep & ((1u << 17) - 2 * a);       // steep: a quarter turn minus a
-  a += neg_c & ((1u << 18) - 2 * a);       // c < 0: half a turn minus a
-  a += neg_s & ((1u << 19) - 2 * a);       // s < 0: a full turn minus a
+  // ratio is in [0, 1]: adding a half and truncating rounds it, in float
+  // operations that give the same bits everywhere (std::lround would call the
+  // C library).
+  const auto t_q15 = static_cast<std::uint32_t>(
+      static_cast<std::int32_t>(ratio * 32768.0f + 0.5f));  // NOLINT(bugprone-incorrect-roundings)
+  std::uint32_t a = octantAtanQ15(t_q15);                   // 2^-19 turn, [0, 2^16]
+  a += steep & ((1u << 17) - 2 * a);                        // steep: a quarter turn minus a
+  a += neg_c & ((1u << 18) - 2 * a);                        // c < 0: half a turn minus a
+  a += neg_s & ((1u << 19) - 2 * a);                        // s < 0: a full turn minus a
   // hypot = den·sqrt(1 + ratio²): a minimax polynomial in ratio² (relative error
   // 8.4e-6), IEEE float multiplies and adds in a fixed order, no sqrt.
   const float u = ratio * ratio;

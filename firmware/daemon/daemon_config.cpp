@@ -190,7 +190,7 @@ DaemonConfig resolveDaemonConfig(const DaemonFlags& flags, const DaemonDefaults&
     throw ConfigError("--board", 0, "",
                       "no board profile configured, and " + std::string(drivers::kNoVirtualHead) +
                           " to default to: give --board DIR or [daemon] board in " +
-                          kSystemConfigFile.string());
+                          std::string(kSystemConfigFile));
   }
   if (flags.data_dir) c.data_dir = nonEmpty(*flags.data_dir, "--data");
   if (flags.web_root) c.web_root = nonEmpty(*flags.web_root, "--web-root");

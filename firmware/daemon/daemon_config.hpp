@@ -85,7 +85,7 @@ struct DaemonFlags {
   std::optional<std::string> listen, token, log_level;
 };
 
-inline const std::filesystem::path kSystemConfigFile = "/etc/cylscan/cylscan.toml";
+inline constexpr std::string_view kSystemConfigFile = "/etc/cylscan/cylscan.toml";
 
 // The defaults, then the config file (--config, else `system_config` when it
 // exists), then the flags. ConfigError for any fault, and when none of them

@@ -35,10 +35,10 @@ struct EventHub::Queue {
   }
 };
 
-class EventHub::Stream final : public EventStream {
+class EventHub::Subscription final : public EventStream {
  public:
-  explicit Stream(std::shared_ptr<Queue> queue) : queue_(std::move(queue)) {}
-  ~Stream() override { queue_->close(); }  // the hub forgets it at its next publish
+  explicit Subscription(std::shared_ptr<Queue> queue) : queue_(std::move(queue)) {}
+  ~Subscription() override { queue_->close(); }  // the hub forgets it at its next publish
 
   std::optional<HeadEvent> next(std::chrono::milliseconds timeout) override {
     std::unique_lock lock(queue_->mutex);
@@ -100,7 +100,7 @@ std::unique_ptr<EventStream> EventHub::subscribe(std::optional<HeadEvent> first)
     }
     queues_.push_back(queue);
   }
-  return std::make_unique<Stream>(std::move(queue));
+  return std::make_unique<Subscription>(std::move(queue));
 }
 
 void EventHub::close() {

@@ -33,7 +33,7 @@ class EventHub {
 
  private:
   struct Queue;
-  class Stream;
+  class Subscription;
   mutable std::mutex mutex_;
   std::size_t capacity_;
   std::uint64_t seq_ = 0;

@@ -40,7 +40,10 @@ class ServiceError : public std::runtime_error {
 };
 
 // One server-sent event: `event: <name>` and `data: <json>` (one line).
-struct HeadEvent {
+// Its implicit move constructor is noexcept, as nlohmann::json's is; the
+// exception-escape check follows json's move into its invariant assertions,
+// which never throw.
+struct HeadEvent {        // NOLINT(bugprone-exception-escape)
   std::uint64_t seq = 0;  // increasing, for `id:` and Last-Event-ID
   std::string name;       // "state" | "progress" | "scan" | "error"
   nlohmann::json data;
