@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <system_error>
@@ -129,6 +131,7 @@ class CaptureJsonParser {
     info.extra.erase("cameras");
     info.extra.erase("sets");
     info.extra.erase("camera_sets");
+    info.extra.erase("frame_sizes");
     if (json extras = setExtras(doc.at("sets")); !extras.empty()) info.extra["sets"] = extras;
     if (const auto own = doc.find("camera_sets"); own != doc.end()) {
       json camera_extras = json::object();
@@ -139,6 +142,7 @@ class CaptureJsonParser {
     }
     // The rules shared with the writer.
     if (auto fault = captureInfoFault(info, required_)) fail(*fault);
+    readFrameSizes(doc, info);
     return info;
   }
 
@@ -210,6 +214,29 @@ class CaptureJsonParser {
       }
       CameraSets& sets = info.camera_sets[camera];
       readSetPair(value, where, sets.high, sets.low);
+    }
+  }
+
+  // The extension "frame_sizes": {camera: [width, height]}, each camera one of
+  // "cameras", both numbers whole and in [1, 2^31).
+  void readFrameSizes(const json& doc, CaptureInfo& info) const {
+    const auto it = doc.find("frame_sizes");
+    if (it == doc.end()) return;
+    if (!it->is_object()) fail("\"frame_sizes\" is a " + jsonTypeName(*it) + ", not an object");
+    for (const auto& [camera, value] : it->items()) {
+      if (std::find(info.cameras.begin(), info.cameras.end(), camera) == info.cameras.end()) {
+        fail("\"frame_sizes\" has camera " + inQuotes(camera) + ", which is not in \"cameras\"");
+      }
+      const std::string where = "frame_sizes." + camera;
+      const auto whole = [](const json& v) {
+        return v.is_number_integer() && v.get<std::int64_t>() >= 1 &&
+               v.get<std::int64_t>() <= std::numeric_limits<std::int32_t>::max();
+      };
+      if (!value.is_array() || value.size() != 2 || !whole(value[0]) || !whole(value[1])) {
+        fail(inQuotes(where) + " must be [width, height], two whole numbers of pixels >= 1");
+      }
+      info.frame_sizes[camera] =
+          cv::Size(value[0].get<std::int32_t>(), value[1].get<std::int32_t>());
     }
   }
 
@@ -379,6 +406,12 @@ CaptureBundleReader::CaptureBundleReader(fs::path dir, FrameLimits limits, SetsR
         }
         const PngHeader header = checkFrameHeader(frame, limits_);
         const cv::Size size(header.width, header.height);
+        if (const auto declared = info_.frame_sizes.find(camera);
+            declared != info_.frame_sizes.end() && size != declared->second) {
+          throw InputError(frame, "frame size " + sizeText(size) + " differs from the " +
+                                      sizeText(declared->second) + " that capture.json declares (" +
+                                      inQuotes("frame_sizes." + camera) + ")");
+        }
         if (!first) {
           first = size;
           first_path = frame;
@@ -570,6 +603,12 @@ void CaptureBundleWriter::commit() {
     if (!set.is_object()) set = json::object();
     set["period_deg"] = info_.set(id).period_deg;
     set["stage_deg"] = info_.set(id).stage_deg;
+  }
+  json& sizes = doc["frame_sizes"];
+  sizes = json::object();
+  for (const std::string& camera : info_.cameras) {
+    const cv::Size size = progress_.at(camera).size;
+    sizes[camera] = {size.width, size.height};
   }
   if (!info_.camera_sets.empty()) {
     json& own = doc["camera_sets"];

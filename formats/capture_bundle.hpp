@@ -52,6 +52,13 @@ struct CaptureInfo {
   // top-level ones); each has both sets. Extras inside those
   // set objects stay in `extra` under "camera_sets" → camera → set.
   std::map<std::string, CameraSets, std::less<>> camera_sets;
+  // Extension: the size of each camera's frames, in capture.json as
+  //   "frame_sizes": {"main": [1000, 800], ...}   ([width, height]).
+  // A reader that finds it refuses, before decoding anything, a frame whose
+  // PNG header claims another size, so a corrupt or hostile header cannot
+  // make it allocate more than the bundle declares. cylscan's writer always
+  // writes it, from the frames it wrote (what is here on input is ignored).
+  std::map<std::string, cv::Size, std::less<>> frame_sizes;
   // Unknown/extra fields, kept on write. Mirrors the layout of capture.json
   // without the known fields: top-level extras at the top, extras inside a set
   // object under "sets" → "high"/"low" (e.g. {"exposure_us": 800,

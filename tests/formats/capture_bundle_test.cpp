@@ -553,10 +553,59 @@ TEST_F(CaptureBundleTest, OneBitFrame) {
 }
 
 TEST_F(CaptureBundleTest, FrameOfAnotherSize) {
+  // A bundle from another writer, without "frame_sizes": the first frame
+  // sets the camera's size.
   writeDefaultBundle();
+  json doc = readJson();
+  doc.erase("frame_sizes");
+  writeJson(doc);
   const fs::path frame = bundle() / "main" / "low" / "02.png";
   writePng(frame, cv::Mat(7, 8, CV_8UC1, cv::Scalar(9)));
   EXPECT_TRUE(openFails(frame, {"frame size 8x7", "8x6", "00.png"}));
+}
+
+TEST_F(CaptureBundleTest, TheWriterDeclaresEachCamerasFrameSize) {
+  writeBundle(bundle(), makeInfo({"main", "aux"}, 3, 3));
+  const json doc = readJson();
+  EXPECT_EQ(doc.at("frame_sizes"), json::parse(R"({"main": [8, 6], "aux": [8, 6]})"));
+  const CaptureBundleReader reader(bundle());
+  EXPECT_EQ(reader.info().frame_sizes.at("aux"), cv::Size(8, 6));
+  EXPECT_TRUE(reader.info().extra.empty()) << reader.info().extra.dump();
+}
+
+TEST_F(CaptureBundleTest, EveryFrameIsBoundByTheDeclaredSize) {
+  // A tiny file whose header claims 8000x8000 (128 MB of 16-bit pixels,
+  // within the global limits) in a bundle that declares 8x6 is refused from
+  // its header, as is a first frame of another size.
+  writeDefaultBundle();
+  const fs::path first = bundle() / "main" / "high" / "00.png";
+  writeText(first, craftedPng(8000, 8000, 16, 0));
+  EXPECT_TRUE(openFails(first, {"frame size 8000x8000", "8x6", "frame_sizes.main"}));
+  writeDefaultBundle();
+  json doc = readJson();
+  doc["frame_sizes"]["main"] = {8, 5};
+  writeJson(doc);
+  EXPECT_TRUE(openFails(first, {"frame size 8x6", "8x5", "frame_sizes.main"}));
+}
+
+TEST_F(CaptureBundleTest, DeclaredFrameSizesMustBeWholePositiveSizesOfListedCameras) {
+  writeDefaultBundle();
+  const json good = readJson();
+  for (const char* bad : {R"([8])", R"([8, 0])", R"([8.5, 6])", R"("8x6")", R"([8, -6])",
+                          R"([8, 4294967296])"}) {
+    json doc = good;
+    doc["frame_sizes"]["main"] = json::parse(bad);
+    writeJson(doc);
+    EXPECT_TRUE(openFails(captureJson(), {"\"frame_sizes.main\"", "[width, height]"})) << bad;
+  }
+  json doc = good;
+  doc["frame_sizes"]["aux"] = {8, 6};
+  writeJson(doc);
+  EXPECT_TRUE(openFails(captureJson(), {"\"frame_sizes\" has camera \"aux\""}));
+  doc = good;
+  doc["frame_sizes"] = json::array();
+  writeJson(doc);
+  EXPECT_TRUE(openFails(captureJson(), {"\"frame_sizes\" is a", "not an object"}));
 }
 
 TEST_F(CaptureBundleTest, PngHeaderClaimingAnAbsurdSizeIsRejectedBeforeDecoding) {
