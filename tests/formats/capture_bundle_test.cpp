@@ -591,8 +591,8 @@ TEST_F(CaptureBundleTest, EveryFrameIsBoundByTheDeclaredSize) {
 TEST_F(CaptureBundleTest, DeclaredFrameSizesMustBeWholePositiveSizesOfListedCameras) {
   writeDefaultBundle();
   const json good = readJson();
-  for (const char* bad : {R"([8])", R"([8, 0])", R"([8.5, 6])", R"("8x6")", R"([8, -6])",
-                          R"([8, 4294967296])"}) {
+  for (const char* bad :
+       {R"([8])", R"([8, 0])", R"([8.5, 6])", R"("8x6")", R"([8, -6])", R"([8, 4294967296])"}) {
     json doc = good;
     doc["frame_sizes"]["main"] = json::parse(bad);
     writeJson(doc);
