@@ -51,6 +51,16 @@ struct Frame {
   std::chrono::nanoseconds timestamp{0};
 };
 
+// One numeric control: its value as configured and the range the camera accepts.
+struct ControlRange {
+  double value = 0, min = 0, max = 0;
+};
+// exposure_us in microseconds, gain as a linear factor (1 = unity), the units of CameraConfig.
+struct CameraControls {
+  ControlRange exposure_us;
+  ControlRange gain;
+};
+
 class CameraError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
@@ -60,7 +70,15 @@ class Camera {
  public:
   virtual ~Camera() = default;
   virtual std::string name() const = 0;
+  // Every backend clamps exposure_us and gain into the ranges controls()
+  // reports, as the sensor drivers do, rather than refusing them: a caller
+  // that must refuse a value out of range compares it with controls() first.
   virtual void configure(const CameraConfig& config) = 0;
+  // The exposure and gain controls, valid after configure(): each value is
+  // what the camera actually uses, after its own clamping and quantisation,
+  // and min/max the range it accepts. A camera without such a control
+  // reports min == max == value.
+  virtual CameraControls controls() const = 0;
   virtual void start() = 0;
   virtual void stop() = 0;
   // Starts one exposure (TriggerMode::Software only).

@@ -3,10 +3,12 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <condition_variable>
 #include <deque>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <system_error>
 #include <utility>
 
@@ -48,6 +50,16 @@ std::shared_ptr<lc::CameraManager> sharedManager() {
   std::shared_ptr<lc::CameraManager> manager(holder, &holder->manager);
   weak = manager;
   return manager;
+}
+
+// A bound of a ControlInfo as a number; nullopt when the camera gives none,
+// or one of another type than T.
+template <typename T>
+std::optional<double> bound(const lc::ControlValue& v) {
+  if (v.isNone() || v.isArray() || v.type() != lc::details::control_type<T>::value) {
+    return std::nullopt;
+  }
+  return static_cast<double>(v.get<T>());
 }
 
 bool isIndex(const std::string& s) {
@@ -174,6 +186,10 @@ const LibcameraNegotiated& LibcameraCamera::negotiated() const {
   return impl_->negotiated;
 }
 
+CameraControls LibcameraCamera::controls() const {
+  return impl_->negotiated.controls;
+}
+
 void LibcameraCamera::configure(const CameraConfig& config) {
   Impl& m = *impl_;
   if (m.running) m.fail("configure while started");
@@ -238,29 +254,40 @@ void LibcameraCamera::configure(const CameraConfig& config) {
   m.has_ae = range(lc::controls::AeEnable).has_value();
   m.exposure.reset();
   m.gain.reset();
+  const auto exposure = range(lc::controls::ExposureTime);
   if (config.exposure_us > 0) {
-    const auto info = range(lc::controls::ExposureTime);
-    if (!info) m.fail("has no ExposureTime control to set exposure_us");
-    const ClampedValue v = clampValue(config.exposure_us, info->min().get<std::int32_t>(),
-                                      info->max().get<std::int32_t>());
+    if (!exposure) m.fail("has no ExposureTime control to set exposure_us");
+    const std::optional<double> lo = bound<std::int32_t>(exposure->min());
+    const std::optional<double> hi = bound<std::int32_t>(exposure->max());
+    const ClampedValue v = clampValue(config.exposure_us, lo, hi);
     m.exposure = static_cast<std::int32_t>(std::lround(v.value));
     m.negotiated.exposure_us = *m.exposure;
+    m.negotiated.controls.exposure_us = libcameraControl(*m.exposure, lo, hi);
     if (v.clamped) {
       m.negotiated.notes.push_back("exposure " + std::to_string(config.exposure_us) +
                                    " µs clamped to " + std::to_string(*m.exposure) + " µs");
     }
+  } else if (exposure) {
+    // Left to the camera: its default is all that is known before a frame's metadata.
+    m.negotiated.controls.exposure_us = libcameraControl(
+        bound<std::int32_t>(exposure->def()).value_or(0.0), bound<std::int32_t>(exposure->min()),
+        bound<std::int32_t>(exposure->max()));
   }
   if (const auto info = range(lc::controls::AnalogueGain)) {
-    const ClampedValue v =
-        clampValue(config.gain, info->min().get<float>(), info->max().get<float>());
+    const std::optional<double> lo = bound<float>(info->min());
+    const std::optional<double> hi = bound<float>(info->max());
+    const ClampedValue v = clampValue(config.gain, lo, hi);
     m.gain = static_cast<float>(v.value);
     m.negotiated.gain = v.value;
+    m.negotiated.controls.gain = libcameraControl(*m.gain, lo, hi);
     if (v.clamped) {
       m.negotiated.notes.push_back("gain " + std::to_string(config.gain) + " clamped to " +
                                    std::to_string(v.value));
     }
   } else if (config.gain != 1.0) {
     m.fail("has no AnalogueGain control to set gain");
+  } else {
+    m.negotiated.controls.gain = {1.0, 1.0, 1.0};
   }
   m.config = config;
 }

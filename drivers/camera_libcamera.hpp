@@ -23,8 +23,11 @@ struct LibcameraNegotiated {
   int width = 0;
   int height = 0;
   std::size_t stride = 0;
-  double exposure_us = 0;          // as set (0: left to the camera)
-  double gain = 0;                 // analogue gain as set (0: left to the camera)
+  double exposure_us = 0;  // as set (0: left to the camera)
+  double gain = 0;         // analogue gain as set (0: left to the camera)
+  // ExposureTime (µs) and AnalogueGain as set, with the bounds of their
+  // ControlInfo; an exposure left to the camera reports the control's default.
+  CameraControls controls;
   std::vector<std::string> notes;  // what differs from the request
 };
 
@@ -42,6 +45,8 @@ class LibcameraCamera final : public Camera {
   void start() override;
   void stop() override;
   void requestFrame() override;
+  // configure() clamps to the ranges of ExposureTime and AnalogueGain.
+  CameraControls controls() const override;
   std::optional<Frame> waitFrame(std::chrono::nanoseconds timeout) override;
 
   const LibcameraNegotiated& negotiated() const;

@@ -134,7 +134,7 @@ void V4l2Camera::setFormat(const CameraConfig& config) {
 }
 
 void V4l2Camera::setControls(const CameraConfig& config) {
-  auto query = [this](std::uint32_t id) -> std::optional<ControlRange> {
+  auto query = [this](std::uint32_t id) -> std::optional<V4l2ControlRange> {
     v4l2_queryctrl q{};
     q.id = id;
     if (ioctlRetry(fd_.get(), VIDIOC_QUERYCTRL, &q) != 0) {
@@ -142,7 +142,7 @@ void V4l2Camera::setControls(const CameraConfig& config) {
       failErrno("VIDIOC_QUERYCTRL");
     }
     if ((q.flags & V4L2_CTRL_FLAG_DISABLED) != 0) return std::nullopt;
-    return ControlRange{q.minimum, q.maximum, q.step, q.default_value};
+    return V4l2ControlRange{q.minimum, q.maximum, q.step, q.default_value};
   };
   auto set = [this](std::uint32_t id, std::int64_t value, const char* what) {
     v4l2_control c{};
@@ -153,15 +153,31 @@ void V4l2Camera::setControls(const CameraConfig& config) {
     }
   };
 
-  if (config.exposure_us > 0) {
+  // The value the device holds, for a control left to it; its default when
+  // the driver does not say (a write-only control, say).
+  auto get = [this](std::uint32_t id, const V4l2ControlRange& range) {
+    v4l2_control c{};
+    c.id = id;
+    if (ioctlRetry(fd_.get(), VIDIOC_G_CTRL, &c) != 0) return range.default_value;
+    return static_cast<std::int64_t>(c.value);
+  };
+
+  // Queried whether or not exposure_us is set, for controls().
+  const std::optional<V4l2ControlRange> range = query(V4L2_CID_EXPOSURE_ABSOLUTE);
+  if (config.exposure_us <= 0) {
+    if (range) {
+      negotiated_.controls.exposure_us =
+          v4l2ExposureControl(get(V4L2_CID_EXPOSURE_ABSOLUTE, *range), *range);
+    }
+  } else {
+    if (!range) fail("has no V4L2_CID_EXPOSURE_ABSOLUTE control to set exposure_us");
     if (query(V4L2_CID_EXPOSURE_AUTO)) {
       set(V4L2_CID_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL, "V4L2_CID_EXPOSURE_AUTO");
     }
-    const std::optional<ControlRange> range = query(V4L2_CID_EXPOSURE_ABSOLUTE);
-    if (!range) fail("has no V4L2_CID_EXPOSURE_ABSOLUTE control to set exposure_us");
     const ControlValue v = clampToRange(exposureUsToV4l2(config.exposure_us), *range);
     set(V4L2_CID_EXPOSURE_ABSOLUTE, v.value, "V4L2_CID_EXPOSURE_ABSOLUTE");
     negotiated_.exposure_us = v4l2ExposureToUs(v.value);
+    negotiated_.controls.exposure_us = v4l2ExposureControl(v.value, *range);
     if (v.clamped) {
       negotiated_.notes.push_back("exposure " + std::to_string(config.exposure_us) +
                                   " µs clamped to " + std::to_string(negotiated_.exposure_us) +
@@ -172,13 +188,14 @@ void V4l2Camera::setControls(const CameraConfig& config) {
   }
 
   std::uint32_t gain_id = V4L2_CID_GAIN;
-  std::optional<ControlRange> gain = query(gain_id);
+  std::optional<V4l2ControlRange> gain = query(gain_id);
   if (!gain) {
     gain_id = V4L2_CID_ANALOGUE_GAIN;
     gain = query(gain_id);
   }
   if (!gain) {
     if (config.gain != 1.0) fail("has no V4L2_CID_GAIN or V4L2_CID_ANALOGUE_GAIN control");
+    negotiated_.controls.gain = {1.0, 1.0, 1.0};
     return;
   }
   std::int64_t requested = 0;
@@ -190,6 +207,7 @@ void V4l2Camera::setControls(const CameraConfig& config) {
   const ControlValue v = clampToRange(requested, *gain);
   set(gain_id, v.value, "the gain control");
   negotiated_.gain_value = v.value;
+  negotiated_.controls.gain = v4l2GainControl(v.value, *gain);
   if (v.clamped) {
     negotiated_.notes.push_back("gain control value " + std::to_string(requested) + " clamped to " +
                                 std::to_string(v.value) + " (device range " +

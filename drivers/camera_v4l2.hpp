@@ -27,6 +27,9 @@ struct V4l2Negotiated {
   std::size_t stride = 0;  // bytes per line
   double exposure_us = 0;  // as set (0: left to the device)
   std::int64_t gain_value = 0;
+  // The exposure (µs) and gain (factor of the control's default) as set, or
+  // as the device had them when left to it, and the device's ranges.
+  CameraControls controls;
   std::vector<std::string> notes;  // what differs from the request, e.g. clamped controls
 };
 
@@ -44,6 +47,9 @@ class V4l2Camera final : public Camera {
   void start() override;
   void stop() override;
   void requestFrame() override;  // always throws: V4L2 has no software trigger
+  // From VIDIOC_QUERYCTRL of V4L2_CID_EXPOSURE_ABSOLUTE and V4L2_CID_GAIN (or
+  // V4L2_CID_ANALOGUE_GAIN), read in configure(); configure() clamps to them.
+  CameraControls controls() const override { return negotiated_.controls; }
   // A timeout, or an error from the stream, restarts the stream once per call
   // (a zero timeout only polls and restarts nothing).
   std::optional<Frame> waitFrame(std::chrono::nanoseconds timeout) override;

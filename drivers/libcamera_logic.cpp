@@ -28,4 +28,11 @@ ClampedValue clampValue(double requested, std::optional<double> minimum,
   return {v, v != requested};
 }
 
+ControlRange libcameraControl(double value, std::optional<double> minimum,
+                              std::optional<double> maximum) {
+  ControlRange r{value, minimum.value_or(value), maximum.value_or(value)};
+  if (r.max < r.min) r.min = r.max = value;
+  return r;
+}
+
 }  // namespace cylscan::drivers

@@ -1,11 +1,13 @@
 // SPDX-License-Identifier: Apache-2.0
 // The parts of the libcamera backend that need no camera: which of
-// libcamera's pixel formats are monochrome, and clamping to control ranges.
+// libcamera's pixel formats are monochrome, clamping to control ranges and
+// reporting them.
 #pragma once
 
 #include <optional>
 #include <string_view>
 
+#include "drivers/camera.hpp"
 #include "drivers/mono_image.hpp"
 
 namespace cylscan::drivers {
@@ -22,5 +24,11 @@ struct ClampedValue {
 // `requested` within [minimum, maximum] (either bound may be unknown).
 ClampedValue clampValue(double requested, std::optional<double> minimum,
                         std::optional<double> maximum);
+
+// What Camera::controls() reports for a control: `value` and the bounds of
+// its ControlInfo. A bound the camera does not give is the value itself (all
+// that is known to work), and so are both of a pair with max below min.
+ControlRange libcameraControl(double value, std::optional<double> minimum,
+                              std::optional<double> maximum);
 
 }  // namespace cylscan::drivers

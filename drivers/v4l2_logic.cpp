@@ -57,7 +57,7 @@ std::uint32_t v4l2Fourcc(const MonoFormat& format) {
   throw std::invalid_argument("v4l2: '" + format.name + "' is not a known monochrome format");
 }
 
-ControlValue clampToRange(std::int64_t requested, const ControlRange& range) {
+ControlValue clampToRange(std::int64_t requested, const V4l2ControlRange& range) {
   if (range.maximum < range.minimum) {
     throw std::invalid_argument("control range [" + std::to_string(range.minimum) + ", " +
                                 std::to_string(range.maximum) + "] is empty");
@@ -81,7 +81,7 @@ double v4l2ExposureToUs(std::int64_t value) {
   return static_cast<double>(value) * 100.0;
 }
 
-std::int64_t gainToV4l2(double gain, const ControlRange& range) {
+std::int64_t gainToV4l2(double gain, const V4l2ControlRange& range) {
   if (!(gain > 0) || !std::isfinite(gain)) {
     throw std::invalid_argument("gain " + std::to_string(gain) + ": must be > 0");
   }
@@ -92,6 +92,26 @@ std::int64_t gainToV4l2(double gain, const ControlRange& range) {
                                 ") is not a unity gain to scale; use gain = 1");
   }
   return std::llround(gain * static_cast<double>(range.default_value));
+}
+
+double v4l2GainFactor(std::int64_t value, const V4l2ControlRange& range) {
+  if (range.default_value <= 0) {
+    throw std::invalid_argument("the gain control's default (" +
+                                std::to_string(range.default_value) +
+                                ") is not a unity gain to scale");
+  }
+  return static_cast<double>(value) / static_cast<double>(range.default_value);
+}
+
+ControlRange v4l2ExposureControl(std::int64_t value, const V4l2ControlRange& range) {
+  return {v4l2ExposureToUs(value), v4l2ExposureToUs(range.minimum),
+          v4l2ExposureToUs(range.maximum)};
+}
+
+ControlRange v4l2GainControl(std::int64_t value, const V4l2ControlRange& range) {
+  if (range.default_value <= 0) return {1.0, 1.0, 1.0};
+  return {v4l2GainFactor(value, range), v4l2GainFactor(range.minimum, range),
+          v4l2GainFactor(range.maximum, range)};
 }
 
 std::chrono::nanoseconds exposureStart(std::chrono::nanoseconds buffer_timestamp,

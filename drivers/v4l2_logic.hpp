@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 
+#include "drivers/camera.hpp"
 #include "drivers/mono_image.hpp"
 
 namespace cylscan::drivers {
@@ -21,8 +22,8 @@ std::optional<MonoFormat> v4l2MonoFormat(std::uint32_t fourcc);
 // The fourcc of a format v4l2MonoFormat() returned.
 std::uint32_t v4l2Fourcc(const MonoFormat& format);
 
-// A control's range as VIDIOC_QUERYCTRL reports it.
-struct ControlRange {
+// A control's range as VIDIOC_QUERYCTRL reports it, in the control's own units.
+struct V4l2ControlRange {
   std::int64_t minimum = 0;
   std::int64_t maximum = 0;
   std::int64_t step = 1;
@@ -35,7 +36,7 @@ struct ControlValue {
 };
 
 // The nearest value of the range's grid (minimum + k·step) within [minimum, maximum].
-ControlValue clampToRange(std::int64_t requested, const ControlRange& range);
+ControlValue clampToRange(std::int64_t requested, const V4l2ControlRange& range);
 
 // V4L2_CID_EXPOSURE_ABSOLUTE counts 100 µs units.
 std::int64_t exposureUsToV4l2(double exposure_us);
@@ -44,7 +45,20 @@ double v4l2ExposureToUs(std::int64_t value);
 // Gain as a factor of the driver's default (1.0 = the default value, which
 // sensor drivers set to unity analogue gain). Throws std::invalid_argument when
 // the gain is not positive, or is not 1 and the default is not positive.
-std::int64_t gainToV4l2(double gain, const ControlRange& range);
+std::int64_t gainToV4l2(double gain, const V4l2ControlRange& range);
+
+// The inverse of gainToV4l2: a control value as a factor of the default.
+// Throws std::invalid_argument when the default is not positive.
+double v4l2GainFactor(std::int64_t value, const V4l2ControlRange& range);
+
+// What Camera::controls() reports for V4L2_CID_EXPOSURE_ABSOLUTE: `value` and
+// the device's range in µs.
+ControlRange v4l2ExposureControl(std::int64_t value, const V4l2ControlRange& range);
+// What Camera::controls() reports for the gain control: `value` and the
+// device's range as factors of its default. A default that is not positive
+// has no unity to scale, so only gain 1 can be set (gainToV4l2): that
+// reports 1 for all three.
+ControlRange v4l2GainControl(std::int64_t value, const V4l2ControlRange& range);
 
 // The start of exposure from a buffer's timestamp: start-of-exposure stamps
 // are used as they are; end-of-frame stamps are moved back by the exposure

@@ -24,8 +24,13 @@ void validate(const CameraParams& p) {
   check(std::abs(p.k1) < 2 && std::abs(p.k2) < 10, p, "k1/k2", "are implausibly large");
   check(p.bit_depth == 8 || p.bit_depth == 10 || p.bit_depth == 12 || p.bit_depth == 16, p,
         "bit_depth", "must be 8, 10, 12 or 16");
-  check(p.exposure_us > 0, p, "exposure_us", "must be > 0");
-  check(p.gain > 0, p, "gain", "must be > 0");
+  check(p.exposure_min_us > 0, p, "exposure_min_us", "must be > 0");
+  check(p.exposure_max_us >= p.exposure_min_us, p, "exposure_max_us", "must be >= exposure_min_us");
+  check(p.exposure_us >= p.exposure_min_us && p.exposure_us <= p.exposure_max_us, p, "exposure_us",
+        "must be in [exposure_min_us, exposure_max_us]");
+  check(p.gain_min > 0, p, "gain_min", "must be > 0");
+  check(p.gain_max >= p.gain_min, p, "gain_max", "must be >= gain_min");
+  check(p.gain >= p.gain_min && p.gain <= p.gain_max, p, "gain", "must be in [gain_min, gain_max]");
   check(p.full_well_e >= 100, p, "full_well_e", "must be >= 100");
   check(p.read_noise_e >= 0, p, "read_noise_e", "must be >= 0");
   check(p.trigger_latency_us >= 0, p, "trigger_latency_us", "must be >= 0");

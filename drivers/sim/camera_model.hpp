@@ -28,6 +28,12 @@ struct CameraParams {
   int bit_depth = 8;  // 8, 10, 12 or 16 significant bits (more than 8: stored in 16 bits)
   double exposure_us = 10000.0;
   double gain = 1.0;  // counts per (full well / max count) electrons
+  // What the sensor accepts (an IMX273-like industrial sensor: tens of µs up,
+  // 24 dB of analogue gain): the camera clamps a configured value into them.
+  double exposure_min_us = 20.0;
+  double exposure_max_us = 200000.0;
+  double gain_min = 1.0;
+  double gain_max = 16.0;
   double full_well_e = 10500.0;
   double read_noise_e = 2.3;
   double trigger_latency_us = 20.0;  // trigger edge → start of exposure

@@ -2,6 +2,7 @@
 #include "drivers/sim/head_config.hpp"
 
 #include <set>
+#include <sstream>
 #include <stdexcept>
 
 #include "drivers/toml_reader.hpp"
@@ -97,6 +98,39 @@ void validate(const HeadConfig& c) {
 }
 
 namespace {
+
+// A number as a person writes it in the file (20, not 20.000000).
+std::string shortNumber(double v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
+}
+
+// A control's keys: its default value and the bounds of its range.
+struct RangeKeys {
+  const char* value;
+  const char* min;
+  const char* max;
+};
+
+// min <= max and the default within them. The error names a key the file
+// gives: of a pair out of order, max unless only min is given; of a default
+// out of range, the default, else the bound that excludes it.
+void requireRange(const TableReader& r, double value, const RangeKeys& keys, double min,
+                  double max) {
+  if (max < min) {
+    if (r.has(keys.max)) {
+      r.fail(keys.max, "must be >= " + std::string(keys.min) + " (" + shortNumber(min) + ")");
+    }
+    r.fail(keys.min, "must be <= " + std::string(keys.max) + " (" + shortNumber(max) + ")");
+  }
+  if (value >= min && value <= max) return;
+  const std::string range = std::string("[") + keys.min + ", " + keys.max + "] = [" +
+                            shortNumber(min) + ", " + shortNumber(max) + "]";
+  if (r.has(keys.value)) r.fail(keys.value, shortNumber(value) + " is outside " + range);
+  r.fail(value < min ? keys.min : keys.max,
+         std::string("must keep ") + keys.value + " (" + shortNumber(value) + ") within " + range);
+}
 
 // Calls a validate() and turns its std::invalid_argument into a ConfigError.
 template <typename T>
@@ -228,7 +262,14 @@ CameraParams readCamera(TableReader r, const CameraParams& defaults) {
   r.require(c.bit_depth == 8 || c.bit_depth == 10 || c.bit_depth == 12 || c.bit_depth == 16,
             "bit_depth", "must be 8, 10, 12 or 16");
   c.exposure_us = r.positive("exposure_us", c.exposure_us);
+  c.exposure_min_us = r.positive("exposure_min_us", c.exposure_min_us);
+  c.exposure_max_us = r.positive("exposure_max_us", c.exposure_max_us);
+  requireRange(r, c.exposure_us, {"exposure_us", "exposure_min_us", "exposure_max_us"},
+               c.exposure_min_us, c.exposure_max_us);
   c.gain = r.positive("gain", c.gain);
+  c.gain_min = r.positive("gain_min", c.gain_min);
+  c.gain_max = r.positive("gain_max", c.gain_max);
+  requireRange(r, c.gain, {"gain", "gain_min", "gain_max"}, c.gain_min, c.gain_max);
   c.full_well_e = r.positive("full_well_e", c.full_well_e);
   r.require(c.full_well_e >= 100, "full_well_e", "must be >= 100");
   c.read_noise_e = r.nonNegative("read_noise_e", c.read_noise_e);

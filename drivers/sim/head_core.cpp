@@ -179,6 +179,12 @@ std::string VirtualCamera::name() const {
   return params_.name;
 }
 
+drivers::CameraControls VirtualCamera::controls() const {
+  const CameraParams& model = core_.camera_models[static_cast<std::size_t>(index_)].params();
+  return {{params_.exposure_us, model.exposure_min_us, model.exposure_max_us},
+          {params_.gain, model.gain_min, model.gain_max}};
+}
+
 VirtualCamera::Nanoseconds VirtualCamera::exposure() const {
   return Nanoseconds{std::llround(params_.exposure_us * 1e3)};
 }
@@ -210,8 +216,11 @@ void VirtualCamera::configure(const drivers::CameraConfig& config) {
     throw drivers::CameraError("camera '" + params_.name + "': gain must be > 0");
   }
   params_.bit_depth = config.bit_depth;
-  params_.exposure_us = config.exposure_us > 0 ? config.exposure_us : model.exposure_us;
-  params_.gain = config.gain;
+  params_.exposure_us =
+      config.exposure_us > 0
+          ? std::clamp(config.exposure_us, model.exposure_min_us, model.exposure_max_us)
+          : model.exposure_us;
+  params_.gain = std::clamp(config.gain, model.gain_min, model.gain_max);
   mode_ = config.trigger;
   stream_ = config.trigger == drivers::TriggerMode::FreeRunning ? drivers::FrameStream::Continuous
                                                                 : config.stream;

@@ -89,6 +89,11 @@ class VirtualCamera final : public drivers::Camera {
   void stop() override;
   void requestFrame() override;
   std::optional<drivers::Frame> waitFrame(Nanoseconds timeout) override;
+  // The sensor's ranges ([[camera]] exposure_min_us, exposure_max_us,
+  // gain_min, gain_max). configure() clamps a value outside them, as V4L2 and
+  // libcamera sensor drivers do, so every backend behaves alike; a value that
+  // no sensor takes (a negative exposure, a gain <= 0) is a CameraError.
+  drivers::CameraControls controls() const override;
 
   // A trigger edge on the trigger line (real-time path); true when it started
   // an exposure.

@@ -46,5 +46,26 @@ TEST(LibcameraControls, ClampsToKnownBounds) {
   EXPECT_DOUBLE_EQ(clampValue(-2.0, std::nullopt, 16.0).value, -2.0);
 }
 
+TEST(LibcameraControls, ReportsTheControlInfoBounds) {
+  const ControlRange c = libcameraControl(5000.0, 14.0, 1e6);
+  EXPECT_DOUBLE_EQ(c.value, 5000.0);
+  EXPECT_DOUBLE_EQ(c.min, 14.0);
+  EXPECT_DOUBLE_EQ(c.max, 1e6);
+  // The value as clamped is what is reported.
+  const ClampedValue gain = clampValue(40.0, 1.0, 16.0);
+  EXPECT_DOUBLE_EQ(libcameraControl(gain.value, 1.0, 16.0).value, 16.0);
+  // A bound the camera does not give: only the value is known to work.
+  const ControlRange open = libcameraControl(2.0, 1.0, std::nullopt);
+  EXPECT_DOUBLE_EQ(open.min, 1.0);
+  EXPECT_DOUBLE_EQ(open.max, 2.0);
+  const ControlRange none = libcameraControl(3.0, std::nullopt, std::nullopt);
+  EXPECT_DOUBLE_EQ(none.min, 3.0);
+  EXPECT_DOUBLE_EQ(none.max, 3.0);
+  // Bounds out of order (a maximum of 0 for "unknown") are no range.
+  const ControlRange odd = libcameraControl(100.0, 50.0, 0.0);
+  EXPECT_DOUBLE_EQ(odd.min, 100.0);
+  EXPECT_DOUBLE_EQ(odd.max, 100.0);
+}
+
 }  // namespace
 }  // namespace cylscan::drivers

@@ -49,7 +49,7 @@ TEST(V4l2Formats, ChoosesFromAnEnumeratedList) {
 }
 
 TEST(V4l2Controls, ClampsToTheRangeAndItsStep) {
-  const ControlRange r{10, 100, 5, 50};
+  const V4l2ControlRange r{10, 100, 5, 50};
   EXPECT_EQ(clampToRange(50, r).value, 50);
   EXPECT_FALSE(clampToRange(50, r).clamped);
   EXPECT_EQ(clampToRange(3, r).value, 10);
@@ -60,10 +60,10 @@ TEST(V4l2Controls, ClampsToTheRangeAndItsStep) {
   EXPECT_EQ(clampToRange(23, r).value, 25);
   EXPECT_TRUE(clampToRange(23, r).clamped);
   // A maximum off the grid: the last grid value below it.
-  EXPECT_EQ(clampToRange(99, ControlRange{0, 99, 10, 0}).value, 90);
+  EXPECT_EQ(clampToRange(99, V4l2ControlRange{0, 99, 10, 0}).value, 90);
   // Step 0 (some drivers report it for integer controls) means 1.
-  EXPECT_EQ(clampToRange(42, ControlRange{0, 100, 0, 0}).value, 42);
-  EXPECT_THROW(clampToRange(1, ControlRange{5, 4, 1, 5}), std::invalid_argument);
+  EXPECT_EQ(clampToRange(42, V4l2ControlRange{0, 100, 0, 0}).value, 42);
+  EXPECT_THROW(clampToRange(1, V4l2ControlRange{5, 4, 1, 5}), std::invalid_argument);
 }
 
 TEST(V4l2Controls, ExposureIsInHundredMicroseconds) {
@@ -77,15 +77,52 @@ TEST(V4l2Controls, ExposureIsInHundredMicroseconds) {
 }
 
 TEST(V4l2Controls, GainScalesTheDriversDefault) {
-  const ControlRange r{16, 248, 1, 16};
+  const V4l2ControlRange r{16, 248, 1, 16};
   EXPECT_EQ(gainToV4l2(1.0, r), 16);
   EXPECT_EQ(gainToV4l2(2.5, r), 40);
   EXPECT_EQ(clampToRange(gainToV4l2(100.0, r), r).value, 248);
   EXPECT_THROW(gainToV4l2(0.0, r), std::invalid_argument);
   // A control whose default is 0 (a dB scale) can only be left at it.
-  const ControlRange db{0, 480, 1, 0};
+  const V4l2ControlRange db{0, 480, 1, 0};
   EXPECT_EQ(gainToV4l2(1.0, db), 0);
   EXPECT_THROW(gainToV4l2(2.0, db), std::invalid_argument);
+}
+
+TEST(V4l2Controls, ReportsTheExposureRangeInMicroseconds) {
+  const V4l2ControlRange r{2, 3000, 1, 100};  // 200 µs to 300 ms
+  const ControlRange c = v4l2ExposureControl(clampToRange(exposureUsToV4l2(12340.0), r).value, r);
+  EXPECT_DOUBLE_EQ(c.value, 12300.0);  // what the device uses: whole 100 µs units
+  EXPECT_DOUBLE_EQ(c.min, 200.0);
+  EXPECT_DOUBLE_EQ(c.max, 300000.0);
+  // A request beyond the range reports the value it was clamped to.
+  EXPECT_DOUBLE_EQ(v4l2ExposureControl(clampToRange(exposureUsToV4l2(1e6), r).value, r).value,
+                   300000.0);
+  EXPECT_DOUBLE_EQ(v4l2ExposureControl(clampToRange(exposureUsToV4l2(20.0), r).value, r).value,
+                   200.0);
+}
+
+TEST(V4l2Controls, ReportsTheGainAsAFactorOfTheDefault) {
+  const V4l2ControlRange r{16, 248, 1, 16};
+  const ControlRange c = v4l2GainControl(gainToV4l2(2.5, r), r);
+  EXPECT_DOUBLE_EQ(c.value, 2.5);
+  EXPECT_DOUBLE_EQ(c.min, 1.0);
+  EXPECT_DOUBLE_EQ(c.max, 15.5);
+  // The control's quantisation shows: 1.02 × 16 rounds to 16, unity.
+  EXPECT_DOUBLE_EQ(v4l2GainControl(gainToV4l2(1.02, r), r).value, 1.0);
+  EXPECT_DOUBLE_EQ(v4l2GainFactor(gainToV4l2(3.0, r), r), 3.0);
+  // A range below the default: factors under 1.
+  const V4l2ControlRange wide{0, 1023, 1, 64};
+  const ControlRange w = v4l2GainControl(clampToRange(gainToV4l2(100.0, wide), wide).value, wide);
+  EXPECT_DOUBLE_EQ(w.min, 0.0);
+  EXPECT_DOUBLE_EQ(w.max, 1023.0 / 64.0);
+  EXPECT_DOUBLE_EQ(w.value, w.max);
+  // A default of 0 (a dB scale) has no unity to scale: only gain 1 is settable.
+  const V4l2ControlRange db{0, 480, 1, 0};
+  const ControlRange d = v4l2GainControl(gainToV4l2(1.0, db), db);
+  EXPECT_DOUBLE_EQ(d.value, 1.0);
+  EXPECT_DOUBLE_EQ(d.min, 1.0);
+  EXPECT_DOUBLE_EQ(d.max, 1.0);
+  EXPECT_THROW(v4l2GainFactor(0, db), std::invalid_argument);
 }
 
 TEST(V4l2Timestamps, ExposureStart) {

@@ -1,8 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // The virtual cameras behind drivers::Camera: triggers, exposure at the stage
-// angle of the moment, sequence numbers, software trigger, timeouts and the
-// fault-injection hooks.
+// angle of the moment, sequence numbers, software trigger, timeouts, the
+// fault-injection hooks, and the exposure and gain controls with their ranges.
 #include <gtest/gtest.h>
+
+#include <string>
+#include <utility>
 
 #include "sim_test_support.hpp"
 
@@ -18,8 +21,8 @@ bool same(const cv::Mat& a, const cv::Mat& b) {
 
 class CameraTest : public ::testing::Test {
  protected:
-  CameraTest()
-      : head(test::smallHead(), test::planeScene()), lines(head), cam(head.camera("main")) {
+  explicit CameraTest(HeadConfig head_config = test::smallHead())
+      : head(std::move(head_config), test::planeScene()), lines(head), cam(head.camera("main")) {
     drivers::CameraConfig config;
     config.trigger = drivers::TriggerMode::GpioPulse;
     cam.configure(config);
@@ -30,6 +33,17 @@ class CameraTest : public ::testing::Test {
     auto f = cam.waitFrame(5s);
     EXPECT_TRUE(f);
     return f ? *f : drivers::Frame{};
+  }
+  // One frame with the camera configured so (12 bits: fine counts).
+  drivers::Frame shootWith(double exposure_us, double gain) {
+    cam.stop();
+    drivers::CameraConfig config;
+    config.bit_depth = 12;
+    config.exposure_us = exposure_us;
+    config.gain = gain;
+    cam.configure(config);
+    cam.start();
+    return shoot();
   }
   VirtualHead head;
   LineDriver lines;
@@ -225,12 +239,124 @@ TEST_F(CameraTest, TriggerDuringExposureIsMissed) {
   EXPECT_EQ(head.missedTriggers("main"), 1u);
 }
 
-TEST_F(CameraTest, ExposureWhileMovingAveragesThePattern) {
+TEST_F(CameraTest, ReportsTheConfiguredControlsAndTheSensorsRange) {
+  // Configured with exposure_us = 0: the model's default exposure.
+  drivers::CameraControls c = cam.controls();
+  EXPECT_DOUBLE_EQ(c.exposure_us.value, 10000.0);
+  EXPECT_DOUBLE_EQ(c.exposure_us.min, 20.0);
+  EXPECT_DOUBLE_EQ(c.exposure_us.max, 200000.0);
+  EXPECT_DOUBLE_EQ(c.gain.value, 1.0);
+  EXPECT_DOUBLE_EQ(c.gain.min, 1.0);
+  EXPECT_DOUBLE_EQ(c.gain.max, 16.0);
+  cam.stop();
+  drivers::CameraConfig config;
+  config.exposure_us = 2500;
+  config.gain = 2.5;
+  cam.configure(config);
+  c = cam.controls();
+  EXPECT_DOUBLE_EQ(c.exposure_us.value, 2500.0);
+  EXPECT_DOUBLE_EQ(c.gain.value, 2.5);
+  EXPECT_DOUBLE_EQ(c.exposure_us.max, 200000.0);
+  EXPECT_DOUBLE_EQ(c.gain.max, 16.0);
+}
+
+TEST(CameraControls, TheRangeIsTheCameraModels) {
+  HeadConfig config = test::smallHead();
+  CameraParams& aux = config.cameras.at(1);
+  aux.exposure_min_us = 50;
+  aux.exposure_max_us = 30000;
+  aux.gain_min = 0.5;
+  aux.gain_max = 4;
+  VirtualHead head(config, test::planeScene());
+  drivers::Camera& cam = head.camera("aux");
+  cam.configure(drivers::CameraConfig{});
+  const drivers::CameraControls c = cam.controls();
+  EXPECT_DOUBLE_EQ(c.exposure_us.value, 10000.0);
+  EXPECT_DOUBLE_EQ(c.exposure_us.min, 50.0);
+  EXPECT_DOUBLE_EQ(c.exposure_us.max, 30000.0);
+  EXPECT_DOUBLE_EQ(c.gain.min, 0.5);
+  EXPECT_DOUBLE_EQ(c.gain.max, 4.0);
+  // main keeps the defaults.
+  head.camera("main").configure(drivers::CameraConfig{});
+  EXPECT_DOUBLE_EQ(head.camera("main").controls().exposure_us.max, 200000.0);
+}
+
+TEST_F(CameraTest, TwiceTheExposureDoublesTheCounts) {
+  const drivers::Frame short_frame = shootWith(2500, 1.0);
+  const drivers::Frame long_frame = shootWith(5000, 1.0);
+  ASSERT_EQ(long_frame.image.type(), CV_16UC1);
+  // Where neither frame is clipped (at 0 or at the 12-bit full scale).
+  const cv::Mat unclipped = (long_frame.image < 4095) & (short_frame.image > 0);
+  ASSERT_GT(cv::countNonZero(unclipped), static_cast<int>(unclipped.total() * 9 / 10));
+  const double short_mean = cv::mean(short_frame.image, unclipped)[0];
+  const double long_mean = cv::mean(long_frame.image, unclipped)[0];
+  EXPECT_GT(short_mean, 100.0);  // a signal well above the rounding
+  // Noiseless head, linear response (gamma 1), the stage and light unchanged
+  // and no LED warm-up: counts are proportional to the exposure, and only
+  // their rounding to whole counts (under 0.5 of a mean of several hundred,
+  // so 0.2 %) moves the ratio off 2.
+  EXPECT_NEAR(long_mean / short_mean, 2.0, 0.01);
+}
+
+TEST_F(CameraTest, ValuesOutOfRangeAreClampedToIt) {
+  // A plane dim enough (1/320 of the default's albedo) for the longest
+  // exposure at the highest gain, 320 times the default's signal, not to clip.
+  head.setScene(test::planeScene(580.0, 0.0025));
+  const drivers::Frame too_long = shootWith(1e6, 100.0);
+  EXPECT_DOUBLE_EQ(cam.controls().exposure_us.value, 200000.0);
+  EXPECT_DOUBLE_EQ(cam.controls().gain.value, 16.0);
+  const drivers::Frame at_max = shootWith(200000, 16.0);
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(at_max.image, &lo, &hi);
+  ASSERT_LT(hi, 4095.0);  // unclipped, so the frames below can differ
+  EXPECT_TRUE(same(too_long.image, at_max.image));
+  EXPECT_FALSE(same(shootWith(100000, 16.0).image, at_max.image));
+
+  // The default plane: a few counts in the shortest exposure.
+  head.setScene(test::planeScene());
+  const drivers::Frame too_short = shootWith(5, 0.25);
+  EXPECT_DOUBLE_EQ(cam.controls().exposure_us.value, 20.0);
+  EXPECT_DOUBLE_EQ(cam.controls().gain.value, 1.0);
+  EXPECT_TRUE(same(too_short.image, shootWith(20, 1.0).image));
+  EXPECT_FALSE(same(too_short.image, shootWith(40, 1.0).image));
+
+  // Values no sensor takes are refused, naming the key.
+  cam.stop();
+  drivers::CameraConfig bad;
+  bad.gain = 0;
+  try {
+    cam.configure(bad);
+    ADD_FAILURE() << "gain 0 accepted";
+  } catch (const drivers::CameraError& e) {
+    EXPECT_NE(std::string(e.what()).find("gain"), std::string::npos) << e.what();
+  }
+  bad.gain = 1;
+  bad.exposure_us = -1;
+  EXPECT_THROW(cam.configure(bad), drivers::CameraError);
+}
+
+// A sensor that exposes for seconds at a gain below unity (the head's
+// default range is 20 µs to 200 ms, gain 1 to 16).
+HeadConfig longExposureHead() {
+  HeadConfig config = test::smallHead();
+  config.cameras.front().exposure_max_us = 2e6;
+  config.cameras.front().gain_min = 1.0 / 256;
+  return config;
+}
+
+class LongExposureCameraTest : public CameraTest {
+ protected:
+  LongExposureCameraTest() : CameraTest(longExposureHead()) {}
+};
+
+TEST_F(LongExposureCameraTest, ExposureWhileMovingAveragesThePattern) {
   cam.stop();
   drivers::CameraConfig config;
   config.exposure_us = 1375000;  // 1.375 s while the stage turns 5°: one whole period
   config.gain = 1.0 / 137.5;     // the same counts as 10 ms at gain 1
   cam.configure(config);
+  ASSERT_DOUBLE_EQ(cam.controls().exposure_us.value, 1375000.0);
+  ASSERT_DOUBLE_EQ(cam.controls().gain.value, 1.0 / 137.5);
   cam.start();
   const drivers::Frame still = shoot();
   lines.pulseTrigger();

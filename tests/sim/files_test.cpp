@@ -84,6 +84,56 @@ TEST(HeadFile, ErrorsNameFileLineAndKey) {
   EXPECT_EQ(c.stage.microsteps, 16);
 }
 
+// The ranges of a camera's exposure and gain: read like its other keys,
+// defaulted, and checked against each other and the camera's defaults.
+TEST(HeadFile, CameraControlRangesAreReadAndChecked) {
+  TempDir tmp;
+  const std::string main = "[[camera]]\nname = \"main\"\n";
+  const HeadConfig plain = loadHeadConfig(tmp.write("plain.toml", main));
+  EXPECT_EQ(plain.cameras[0].exposure_min_us, 20.0);
+  EXPECT_EQ(plain.cameras[0].exposure_max_us, 200000.0);
+  EXPECT_EQ(plain.cameras[0].gain_min, 1.0);
+  EXPECT_EQ(plain.cameras[0].gain_max, 16.0);
+  const HeadConfig set = loadHeadConfig(
+      tmp.write("set.toml", main + "exposure_us = 900000.0\nexposure_min_us = 50.0\n"
+                                   "exposure_max_us = 1e6\ngain = 0.5\ngain_min = 0.25\n"
+                                   "gain_max = 64.0\n"));
+  EXPECT_EQ(set.cameras[0].exposure_us, 900000.0);
+  EXPECT_EQ(set.cameras[0].exposure_min_us, 50.0);
+  EXPECT_EQ(set.cameras[0].exposure_max_us, 1e6);
+  EXPECT_EQ(set.cameras[0].gain, 0.5);
+  EXPECT_EQ(set.cameras[0].gain_min, 0.25);
+  EXPECT_EQ(set.cameras[0].gain_max, 64.0);
+
+  auto bad = [&](const std::string& name, const std::string& lines) {
+    return tmp.write(name, main + lines);
+  };
+  // A default outside the range names the default ...
+  const auto long_default = bad("a.toml", "exposure_us = 300000.0\n");
+  expectConfigError([&] { loadHeadConfig(long_default); }, 3, "camera[0].exposure_us");
+  const auto high_gain = bad("b.toml", "gain = 20.0\n");
+  expectConfigError([&] { loadHeadConfig(high_gain); }, 3, "camera[0].gain");
+  // ... or, when only the range is given, the bound that excludes it.
+  const auto short_max = bad("c.toml", "\nexposure_max_us = 5000.0\n");
+  expectConfigError([&] { loadHeadConfig(short_max); }, 4, "camera[0].exposure_max_us");
+  const auto high_min = bad("d.toml", "gain_min = 2.0\n");
+  expectConfigError([&] { loadHeadConfig(high_min); }, 3, "camera[0].gain_min");
+  // Bounds out of order, and bounds that are not positive.
+  const auto inverted = bad("e.toml", "exposure_min_us = 500.0\nexposure_max_us = 400.0\n");
+  expectConfigError([&] { loadHeadConfig(inverted); }, 4, "camera[0].exposure_max_us");
+  const auto zero = bad("f.toml", "gain_min = 0.0\n");
+  expectConfigError([&] { loadHeadConfig(zero); }, 3, "camera[0].gain_min");
+  // The parameters' own check (for heads built in code) names the key too.
+  CameraParams p;
+  p.gain_max = 0.5;
+  try {
+    validate(p);
+    ADD_FAILURE() << "gain_max < gain_min accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("gain_max"), std::string::npos) << e.what();
+  }
+}
+
 TEST(SceneFile, BoardScenesLoad) {
   int count = 0;
   for (const auto& entry : fs::directory_iterator(kBoard / "scenes")) {
