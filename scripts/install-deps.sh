@@ -15,6 +15,7 @@ PKGS=(
   libtomlplusplus-dev      # scene and board TOML
   libcli11-dev             # the cylscan command line
   libmicrohttpd-dev        # cylscand's HTTP API
+  libturbojpeg0-dev        # the live view's JPEG frames (TurboJPEG API)
   libsystemd-dev           # cylscand: sd_notify READY/WATCHDOG under systemd
   libcurl4-openssl-dev     # tests: a real HTTP client against the running daemon
   libgtest-dev libgmock-dev

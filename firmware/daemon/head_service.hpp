@@ -62,6 +62,40 @@ class EventStream {
   virtual std::uint64_t dropped() const = 0;
 };
 
+// One picture of a camera's live view: a JPEG and the figures of the frame
+// it shows (firmware/live_picture.hpp).
+struct LiveFrame {
+  std::uint64_t sequence = 0;  // counts the pictures of this stream from 1
+  std::string jpeg;
+  double focus = 0.0;      // variance of the Laplacian over the central half
+  double saturated = 0.0;  // share of the pixels at full scale
+};
+
+// What a client of the live view asks for.
+struct LiveViewRequest {
+  std::string camera;
+  bool saturation_overlay = false;
+};
+
+// A subscription to one camera's live view. It holds only the newest
+// picture: a slow reader skips pictures, it never makes the head wait. It
+// ends when a scan or a capture starts, when the camera fails and when the
+// service stops.
+class LiveStream {
+ public:
+  virtual ~LiveStream() = default;
+  // The next picture taken after the last one returned (the first: one
+  // exposed after the stream opened); nullopt when none came within
+  // `timeout` or the stream has ended.
+  virtual std::optional<LiveFrame> next(std::chrono::milliseconds timeout) = 0;
+  virtual bool ended() const = 0;
+  // Why it ended ("a scan started", ...); empty while it runs.
+  virtual std::string endReason() const = 0;
+  // The HTTP status that says why it ended, as ServiceError's: 409 a scan
+  // or a capture started, 503 the camera failed or the service stops.
+  virtual int endStatus() const = 0;
+};
+
 class HeadService {
  public:
   virtual ~HeadService() = default;
@@ -113,6 +147,20 @@ class HeadService {
                                                                std::string_view /*camera*/) const {
     return std::nullopt;
   }
+
+  // GET /api/v1/cameras: the board's cameras with their exposure and gain.
+  virtual nlohmann::json cameras() const = 0;
+  // PATCH /api/v1/cameras/{name}: `controls` holds exposure_us and/or gain.
+  // ServiceError 400 (a value out of range or of the wrong type, naming the
+  // key; an unknown key), 404 no such camera, 409 a scan runs. The values are
+  // kept across restarts and used by scans and the live view. Returns the
+  // camera as cameras() lists it.
+  virtual nlohmann::json setCameraControls(std::string_view camera,
+                                           const nlohmann::json& controls) = 0;
+  // GET /api/v1/cameras/{name}/stream.mjpg and snapshot.jpg (its first
+  // picture). ServiceError 404 no such camera, 409 a scan runs, 503 the
+  // service is stopping.
+  virtual std::unique_ptr<LiveStream> openLiveView(const LiveViewRequest& request) = 0;
 
   // GET /api/v1/events.
   virtual std::unique_ptr<EventStream> subscribe() = 0;

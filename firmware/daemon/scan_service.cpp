@@ -107,6 +107,7 @@ ScanService::ScanService(ScanServiceOptions options)
   board_name_ = profile_.name;
   scenes_dir_ = profile_.file.parent_path() / "scenes";
   acquisition_ = std::make_unique<Acquisition>(*board_);
+  loadCameraSettings();
   scans_total_.inc("done", 0);
   scans_total_.inc("failed", 0);
   loadCalibrationInfo();
@@ -123,6 +124,7 @@ void ScanService::stop() {
     std::lock_guard lock(mutex_);
     stopping_ = true;
   }
+  live_.end(503, "the daemon is stopping");
   cv_.notify_all();
   // Acquisition::run clears an abort that comes before it starts, so the
   // abort is repeated until the worker has finished.
@@ -352,19 +354,41 @@ std::string ScanService::queueLocked(Request request) {
   return job_->record.id;
 }
 
+// Scans when one is queued; else, while someone watches a camera, takes the
+// live view's pictures. A queued scan waits at most for the picture being
+// taken, and ends the live view before it starts.
 void ScanService::worker() {
   for (;;) {
     Job* job = nullptr;
+    std::optional<CameraControlSettings> changed;
     {
       std::unique_lock lock(mutex_);
-      cv_.wait(lock, [&] { return stopping_ || job_; });
-      if (!job_) break;  // stopping, nothing queued
-      job = job_.get();
-      job->record.state = ScanState::kRunning;
-      job->started = Clock::now();
-      events_.publish("scan", job->record);
+      cv_.wait(lock,
+               [&] { return stopping_ || job_ || camera_settings_changed_ || live_.anyWatched(); });
+      if (camera_settings_changed_) {
+        changed = camera_settings_;
+        camera_settings_changed_ = false;
+      } else if (job_) {
+        job = job_.get();
+        job->record.state = ScanState::kRunning;
+        job->started = Clock::now();
+        events_.publish("scan", job->record);
+      } else if (stopping_) {
+        break;  // nothing queued
+      }
     }
-    runJob(*job);  // ends with finishLocked()
+    if (changed) {
+      try {
+        applyCameraSettings(*changed);
+      } catch (const std::exception& e) {
+        logError(std::string("cameras: the settings cannot be applied: ") + e.what());
+      }
+    } else if (job != nullptr) {
+      live_.end(409, "a scan started");
+      runJob(*job);  // ends with finishLocked()
+    } else {
+      serveLiveView();
+    }
   }
   std::lock_guard lock(mutex_);
   worker_done_ = true;
@@ -386,10 +410,18 @@ void ScanService::reopenBoard(const std::optional<fs::path>& scene) {
   old_board.reset();
   auto board = std::make_unique<drivers::Board>(drivers::Board::open(options_.board, scene));
   auto acquisition = std::make_unique<Acquisition>(*board);
-  std::lock_guard lock(acquisition_mutex_);
-  board_ = std::move(board);
-  acquisition_ = std::move(acquisition);
-  board_scene_ = scene;
+  {
+    std::lock_guard lock(acquisition_mutex_);
+    board_ = std::move(board);
+    acquisition_ = std::move(acquisition);
+    board_scene_ = scene;
+  }
+  CameraControlSettings settings;
+  {
+    std::lock_guard lock(mutex_);
+    settings = camera_settings_;
+  }
+  applyCameraSettings(settings);
 }
 
 void ScanService::finishLocked(const ScanRecord& record) {
@@ -468,7 +500,7 @@ ScanReport ScanService::acquire(Job& job, const ScanPlan& plan, PhaseSink& phase
     json extra = {{"device", "cylscand " + board_name_},
                   {"board", board_name_},
                   {"mode", toString(request.scan.mode)},
-                  {"exposure_us", main.exposure_us}};
+                  {"exposure_us", board_->camera("main").controls().exposure_us.value}};
     if (main.bit_depth > 8) extra["bit_depth"] = main.bit_depth;
     bundle = std::make_unique<BundleSink>(partial / kBundleDir, plan, request.scan.cameras, extra);
     sinks.add(*bundle);
@@ -604,6 +636,14 @@ json ScanService::camerasJsonLocked() const {
   return out;
 }
 
+// Whether each of the board's cameras has a calibration installed (mutex_ held).
+json ScanService::calibrationStateLocked() const {
+  json out = json::object();
+  for (const auto& camera : profile_.cameras)
+    out[camera.name] = calibration_info_.count(camera.name) > 0;
+  return out;
+}
+
 json ScanService::status() const {
   // The head's outputs as the firmware drives them (before mutex_: the two
   // mutexes are never held together).
@@ -626,7 +666,7 @@ json ScanService::status() const {
           {"version", options_.version},
           {"current_scan", s["scan"]},
           {"last_error", last_error_ ? json(*last_error_) : json(nullptr)},
-          {"calibration", {{"main", calibration_info_.count("main") > 0}}},
+          {"calibration", calibrationStateLocked()},
           {"cameras", camerasJsonLocked()},
           {"head", {{"installed", head_info_.has_value()}}},
           {"scans", store_.count()},

@@ -23,9 +23,11 @@
 
 #include "drivers/board.hpp"
 #include "firmware/acquisition.hpp"
+#include "firmware/daemon/camera_settings.hpp"
 #include "firmware/daemon/daemon_config.hpp"
 #include "firmware/daemon/event_hub.hpp"
 #include "firmware/daemon/head_service.hpp"
+#include "firmware/daemon/live_hub.hpp"
 #include "firmware/daemon/metrics.hpp"
 #include "firmware/daemon/scan_record.hpp"
 #include "firmware/daemon/scan_store.hpp"
@@ -90,6 +92,10 @@ class ScanService final : public HeadService {
                                                        std::string_view camera) const override;
   std::unique_ptr<EventStream> subscribe() override;
   std::string metricsText() const override;
+  nlohmann::json cameras() const override;
+  nlohmann::json setCameraControls(std::string_view camera,
+                                   const nlohmann::json& controls) override;
+  std::unique_ptr<LiveStream> openLiveView(const LiveViewRequest& request) override;
 
  private:
   struct Request;  // a validated POST
@@ -108,6 +114,16 @@ class ScanService final : public HeadService {
   void reopenBoard(const std::optional<std::filesystem::path>& scene);
   void loadCalibrationInfo();
   void loadHeadInfo();
+
+  // The cameras' controls (firmware/daemon/scan_service_cameras.cpp).
+  void loadCameraSettings();
+  // On the worker: configures the board's cameras with the settings and
+  // reads back what they use and accept.
+  void applyCameraSettings(const CameraControlSettings& settings);
+  // On the worker, while no scan is queued: one exposure of the watched
+  // cameras for the live view.
+  void serveLiveView();
+  nlohmann::json cameraJsonLocked(const drivers::CameraProfile& camera) const;
 
   // One scan, on the worker: the steps of runJob.
   void runJob(Job& job);
@@ -130,6 +146,7 @@ class ScanService final : public HeadService {
   void finishLocked(const ScanRecord& record);
   nlohmann::json stateJson() const;  // mutex_ held
   nlohmann::json camerasJsonLocked() const;
+  nlohmann::json calibrationStateLocked() const;
   nlohmann::json diskFreeBytes() const;  // null when unknown
   std::string newScanId(std::chrono::system_clock::time_point now);
 
@@ -161,6 +178,12 @@ class ScanService final : public HeadService {
   std::map<std::string, nlohmann::json, std::less<>>
       calibration_info_;                     // by camera, when installed
   std::optional<nlohmann::json> head_info_;  // the installed head.json
+  CameraControlSettings camera_settings_;    // as set through the API
+  bool camera_settings_changed_ = false;     // not yet applied by the worker
+  std::map<std::string, drivers::CameraControls, std::less<>> camera_controls_;  // as applied
+  std::mutex settings_file_mutex_;  // one writer of cameras.json at a time
+  LiveHub live_;
+  std::chrono::steady_clock::time_point last_live_capture_{};  // the worker's
 
   Counter frames_total_;
   LabelledCounter scans_total_;

@@ -2,6 +2,7 @@
 #include "firmware/http/http_api.hpp"
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <microhttpd.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -10,15 +11,18 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <charconv>
 #include <condition_variable>
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <mutex>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <system_error>
 #include <thread>
@@ -40,6 +44,19 @@ using nlohmann::json;
 constexpr std::chrono::milliseconds kPumpTick{50};  // how often event streams are looked at
 constexpr std::size_t kSsePendingLimit = 1u << 20;  // unsent bytes per stream
 constexpr std::size_t kSseBlockSize = 4096;
+// A live view's parts are whole JPEGs: larger blocks, fewer calls.
+constexpr std::size_t kLiveBlockSize = 64u << 10;
+constexpr std::string_view kLiveBoundary = "cylscanframe";
+// How long a snapshot waits for its picture before it is refused.
+constexpr std::chrono::seconds kSnapshotTimeout{10};
+// A request refused before its body was read: the client may still be
+// sending it, and a browser reads the answer only once it has sent it all.
+// Closing at once would reset the connection and lose the answer, so the
+// rest is read and thrown away for a while (at most this long and this many
+// bytes), then the socket is closed.
+constexpr std::chrono::seconds kLingerTime{3};
+constexpr std::size_t kLingerBytes = 256u << 20;
+constexpr std::size_t kLingerBytesPerTick = 8u << 20;
 
 std::string dumpJson(const json& value) {
   return value.dump(-1, ' ', false, json::error_handler_t::replace);
@@ -86,9 +103,33 @@ struct Request {
   bool answered = false;   // a response is queued
   bool streaming = false;  // an event stream: counted when it starts
   int status = 0;
+  std::shared_ptr<struct PendingSnapshot> snapshot;  // a snapshot waiting for its picture
+  bool counted_snapshot = false;                     // in snapshots_in_flight
+  bool in_begin = false;  // answering in the first call: the body is unread
+  bool linger = false;    // answered before a body that is still coming
+  int fd = -1;            // the connection's socket
+};
+
+// The socket of a connection answered before its body was read, kept open
+// (a duplicate of libmicrohttpd's descriptor) while the rest is drained.
+struct Lingering {
+  int fd = -1;
+  Clock::time_point deadline;
+  std::size_t drained = 0;
 };
 
 struct SseClient;
+
+// A snapshot's request, suspended until the live view has its picture (or
+// ends, or the wait times out); the pump then sets the reply and resumes it.
+struct PendingSnapshot {
+  MHD_Connection* connection = nullptr;
+  std::unique_ptr<LiveStream> live;
+  Clock::time_point deadline;
+  std::string camera;
+  std::mutex mutex;
+  std::optional<Reply> reply;
+};
 
 }  // namespace
 
@@ -108,6 +149,9 @@ struct ApiServer {
   std::mutex sse_mutex;
   std::condition_variable sse_cv;
   std::map<SseClient*, std::shared_ptr<SseClient>> sse_clients;
+  std::vector<std::shared_ptr<PendingSnapshot>> snapshots;  // suspended requests
+  std::size_t snapshots_in_flight = 0;  // suspended or resumed, not yet completed
+  std::vector<Lingering> lingering;     // the pump's
   bool stopping = false;
   std::thread pump;
 
@@ -118,6 +162,7 @@ struct ApiServer {
   MHD_Result access(MHD_Connection* c, const char* url, const char* method, const char* upload_data,
                     std::size_t* upload_size, void** con_cls);
   MHD_Result begin(MHD_Connection* c, const char* url, Request& r);
+  MHD_Result beginRequest(MHD_Connection* c, const char* url, Request& r);
   MHD_Result answer(MHD_Connection* c, Request& r, Reply reply);
   MHD_Result refuse(MHD_Connection* c, Request& r, Reply reply);
   std::optional<Reply> checkAuth(MHD_Connection* c) const;
@@ -125,6 +170,14 @@ struct ApiServer {
   Reply handle(MHD_Connection* c, Request& r);
   Reply staticFile(const Request& r) const;
   MHD_Result startEvents(MHD_Connection* c, Request& r);
+  MHD_Result startLiveView(MHD_Connection* c, Request& r);
+  MHD_Result startStream(MHD_Connection* c, Request& r, const std::shared_ptr<SseClient>& client,
+                         const char* content_type, std::size_t block_size,
+                         const std::function<void(SseClient&)>& open);
+  MHD_Result startSnapshot(MHD_Connection* c, Request& r);
+  void serveSnapshots();
+  void serveLive(SseClient& client, Clock::time_point now);
+  void drainLingering(Clock::time_point now);
   void completed(const Request& r);
 
   void pumpLoop();
@@ -138,7 +191,9 @@ struct SseClient {
   ApiServer* owner = nullptr;
   MHD_Connection* connection = nullptr;
   int fd = -1;  // the connection's socket, watched for a hang-up while suspended
-  std::unique_ptr<EventStream> stream;
+  std::unique_ptr<EventStream> stream;  // an event stream's source,
+  std::unique_ptr<LiveStream> live;     // or a live view's
+  bool is_live = false;                 // set before it is registered
 
   std::mutex mutex;
   std::string pending;  // formatted, not yet handed to libmicrohttpd
@@ -153,6 +208,26 @@ struct SseClient {
     last_output = now;
   }
 };
+
+std::string formatNumber(double x) {
+  std::ostringstream out;
+  out.precision(6);
+  out << x;
+  return out.str();
+}
+
+// One part of a multipart/x-mixed-replace live view.
+std::string formatPart(const LiveFrame& frame) {
+  std::string out = "--" + std::string(kLiveBoundary) + "\r\n";
+  out += "Content-Type: image/jpeg\r\n";
+  out += "Content-Length: " + std::to_string(frame.jpeg.size()) + "\r\n";
+  out += "X-Cylscan-Sequence: " + std::to_string(frame.sequence) + "\r\n";
+  out += "X-Cylscan-Focus: " + formatNumber(frame.focus) + "\r\n";
+  out += "X-Cylscan-Saturated: " + formatNumber(frame.saturated) + "\r\n\r\n";
+  out += frame.jpeg;
+  out += "\r\n";
+  return out;
+}
 
 std::string formatEvent(const HeadEvent& e) {
   std::string out = "id: " + std::to_string(e.seq) + "\n";
@@ -254,6 +329,14 @@ MHD_Result sumValue(void* cls, MHD_ValueKind /*kind*/, const char* key, const ch
   return MHD_YES;
 }
 
+// `?overlay=saturation`: true; no overlay: false; anything else: nullopt.
+std::optional<bool> saturationOverlayAsked(MHD_Connection* c) {
+  const char* v = MHD_lookup_connection_value(c, MHD_GET_ARGUMENT_KIND, "overlay");
+  if (v == nullptr) return false;
+  if (std::string_view(v) == "saturation") return true;
+  return std::nullopt;
+}
+
 const char* headerValue(MHD_Connection* c, const char* name) {
   return MHD_lookup_connection_value(c, MHD_HEADER_KIND, name);
 }
@@ -332,6 +415,7 @@ void ApiServer::stop() {
   }
   sse_cv.notify_all();
   if (pump.joinable()) pump.join();
+  serveSnapshots();  // every one is answered 503 now that stopping is set
   // End every stream: a suspended one is resumed and its reader answers the
   // end (libmicrohttpd must not be stopped with suspended connections).
   for (const auto& client : clients) {
@@ -346,12 +430,16 @@ void ApiServer::stop() {
   {
     // Bounded: a client that reads nothing must not hold the shutdown.
     std::unique_lock lock(sse_mutex);
-    sse_cv.wait_for(lock, std::chrono::seconds(2), [this] { return sse_clients.empty(); });
+    sse_cv.wait_for(lock, std::chrono::seconds(2),
+                    [this] { return sse_clients.empty() && snapshots_in_flight == 0; });
   }
   if (daemon != nullptr) MHD_stop_daemon(daemon);
   daemon = nullptr;
   std::lock_guard lock(sse_mutex);
   sse_clients.clear();
+  for (const Lingering& l : lingering)
+    ::close(l.fd);
+  lingering.clear();
 }
 
 MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* method,
@@ -383,7 +471,19 @@ MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* met
   }
   if (r.answered) return MHD_YES;
   if (r.deferred) return answer(c, r, std::move(*r.deferred));
+  if (r.snapshot) {  // resumed by the pump with its reply
+    std::optional<Reply> reply;
+    {
+      std::lock_guard lock(r.snapshot->mutex);
+      reply = std::move(r.snapshot->reply);
+    }
+    r.snapshot.reset();
+    return answer(c, r, reply ? std::move(*reply) : errorReply(503, "no picture was taken"));
+  }
   if (r.route.endpoint == http::Endpoint::Events && r.method == "GET") return startEvents(c, r);
+  if (r.route.endpoint == http::Endpoint::CameraStream && r.method == "GET")
+    return startLiveView(c, r);
+  if (r.route.endpoint == http::Endpoint::CameraSnapshot) return startSnapshot(c, r);
   return answer(c, r, dispatch(c, r));
 }
 
@@ -425,6 +525,17 @@ MHD_Result ApiServer::refuse(MHD_Connection* c, Request& r, Reply reply) {
 }
 
 MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
+  if (const MHD_ConnectionInfo* info =
+          MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD)) {
+    r.fd = info->connect_fd;
+  }
+  r.in_begin = true;
+  const MHD_Result result = beginRequest(c, url, r);
+  r.in_begin = false;
+  return result;
+}
+
+MHD_Result ApiServer::beginRequest(MHD_Connection* c, const char* url, Request& r) {
   // Request line and headers: libmicrohttpd answers itself when they do not
   // fit its per-connection memory; below that, max_header_bytes applies.
   std::size_t head = std::strlen(url) + r.method.size() + 12;
@@ -484,6 +595,11 @@ MHD_Result ApiServer::begin(MHD_Connection* c, const char* url, Request& r) {
 }
 
 MHD_Result ApiServer::answer(MHD_Connection* c, Request& r, Reply reply) {
+  if (r.in_begin) {
+    const char* length = headerValue(c, MHD_HTTP_HEADER_CONTENT_LENGTH);
+    r.linger = headerValue(c, MHD_HTTP_HEADER_TRANSFER_ENCODING) != nullptr ||
+               (length != nullptr && std::strcmp(length, "0") != 0);
+  }
   // The upload is over once it is answered: the next upload, sent as soon as
   // the client has this answer, must not find the slot still taken (the
   // completion callback runs only after the client has the answer).
@@ -625,13 +741,34 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       reply.content_type = "text/event-stream";
       return reply;
     }
+    case Endpoint::Cameras:
+      return jsonReply(200, service.cameras());
+    case Endpoint::Camera: {
+      json controls;
+      try {
+        controls = json::parse(r.body);
+      } catch (const json::exception& e) {
+        return errorReply(400, std::string("the body is not valid JSON: ") + e.what());
+      }
+      if (!controls.is_object()) return errorReply(400, "the body must be a JSON object");
+      return jsonReply(200, service.setCameraControls(r.route.name, controls));
+    }
+    case Endpoint::CameraStream: {  // HEAD: the headers of a stream, no stream
+      Reply reply;
+      reply.content_type = "multipart/x-mixed-replace; boundary=" + std::string(kLiveBoundary);
+      return reply;
+    }
+    case Endpoint::CameraSnapshot:  // answered by startSnapshot
+      break;
     case Endpoint::Metrics: {
       std::string text = service.metricsText();
       if (!text.empty() && text.back() != '\n') text += '\n';
       std::size_t clients = 0;
       {
         std::lock_guard lock(sse_mutex);
-        clients = sse_clients.size();
+        clients = static_cast<std::size_t>(
+            std::count_if(sse_clients.begin(), sse_clients.end(),
+                          [](const auto& entry) { return !entry.second->is_live; }));
       }
       Reply reply;
       reply.body = text + metrics.text(clients);
@@ -661,10 +798,40 @@ Reply ApiServer::staticFile(const Request& r) const {
 
 MHD_Result ApiServer::startEvents(MHD_Connection* c, Request& r) {
   auto client = std::make_shared<SseClient>();
-  client->owner = this;
   // A first comment, so the client has the head and a first chunk at once
   // even when the service has nothing to say yet.
   client->pending = ": cylscan events\n\n";
+  return startStream(c, r, client, "text/event-stream", kSseBlockSize, [this](SseClient& cl) {
+    auto stream = service.subscribe();
+    std::lock_guard lock(cl.mutex);
+    cl.stream = std::move(stream);
+  });
+}
+
+MHD_Result ApiServer::startLiveView(MHD_Connection* c, Request& r) {
+  auto client = std::make_shared<SseClient>();
+  client->is_live = true;
+  const std::optional<bool> overlay = saturationOverlayAsked(c);
+  if (!overlay) return answer(c, r, errorReply(400, "overlay: the only overlay is saturation"));
+  LiveViewRequest request;
+  request.camera = r.route.name;
+  request.saturation_overlay = *overlay;
+  const std::string type = "multipart/x-mixed-replace; boundary=" + std::string(kLiveBoundary);
+  return startStream(c, r, client, type.c_str(), kLiveBlockSize, [&](SseClient& cl) {
+    auto live = service.openLiveView(request);
+    std::lock_guard lock(cl.mutex);
+    cl.live = std::move(live);
+  });
+}
+
+// Registers a stream (503 past max_sse_clients or while stopping), opens its
+// source with `open` (a ServiceError is answered with its status) and starts
+// the response that the pump feeds.
+MHD_Result ApiServer::startStream(MHD_Connection* c, Request& r,
+                                  const std::shared_ptr<SseClient>& client,
+                                  const char* content_type, std::size_t block_size,
+                                  const std::function<void(SseClient&)>& open) {
+  client->owner = this;
   client->connection = c;
   if (const MHD_ConnectionInfo* info =
           MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD)) {
@@ -674,9 +841,11 @@ MHD_Result ApiServer::startEvents(MHD_Connection* c, Request& r) {
     std::lock_guard lock(sse_mutex);
     if (stopping) return answer(c, r, errorReply(503, "the server is stopping"));
     if (sse_clients.size() >= options.max_sse_clients) {
-      return answer(c, r,
-                    errorReply(503, "too many event streams (at most " +
-                                        std::to_string(options.max_sse_clients) + ")"));
+      return answer(
+          c, r,
+          errorReply(503,
+                     std::string(client->is_live ? "too many streams" : "too many event streams") +
+                         " (at most " + std::to_string(options.max_sse_clients) + ")"));
     }
     sse_clients.emplace(client.get(), client);  // reserves the place
   }
@@ -685,23 +854,23 @@ MHD_Result ApiServer::startEvents(MHD_Connection* c, Request& r) {
     sse_clients.erase(client.get());
   };
   try {
-    auto stream = service.subscribe();
-    std::lock_guard lock(client->mutex);
-    client->stream = std::move(stream);
+    open(*client);
   } catch (const std::exception& e) {
     unregister();
     const auto* se = dynamic_cast<const ServiceError*>(&e);
     return answer(c, r,
                   errorReply(se != nullptr ? se->httpStatus() : 500,
-                             std::string("cannot subscribe to events: ") + e.what()));
+                             std::string(client->is_live ? "no live view: "
+                                                         : "cannot subscribe to events: ") +
+                                 e.what()));
   }
-  MHD_Response* response = MHD_create_response_from_callback(MHD_SIZE_UNKNOWN, kSseBlockSize,
-                                                             &sseRead, client.get(), &sseFree);
+  MHD_Response* response = MHD_create_response_from_callback(MHD_SIZE_UNKNOWN, block_size, &sseRead,
+                                                             client.get(), &sseFree);
   if (response == nullptr) {
     unregister();
-    return answer(c, r, errorReply(500, "cannot create the event stream"));
+    return answer(c, r, errorReply(500, "cannot create the stream"));
   }
-  MHD_add_response_header(response, MHD_HTTP_HEADER_CONTENT_TYPE, "text/event-stream");
+  MHD_add_response_header(response, MHD_HTTP_HEADER_CONTENT_TYPE, content_type);
   MHD_add_response_header(response, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
   MHD_add_response_header(response, "X-Content-Type-Options", "nosniff");
   MHD_add_response_header(response, "X-Accel-Buffering", "no");
@@ -717,8 +886,99 @@ MHD_Result ApiServer::startEvents(MHD_Connection* c, Request& r) {
   return result;
 }
 
+// Opens the live view for one picture and suspends the request; the pump
+// resumes it with the picture or the reason there is none.
+MHD_Result ApiServer::startSnapshot(MHD_Connection* c, Request& r) {
+  auto pending = std::make_shared<PendingSnapshot>();
+  pending->connection = c;
+  pending->camera = r.route.name;
+  pending->deadline = Clock::now() + kSnapshotTimeout;
+  const std::optional<bool> overlay = saturationOverlayAsked(c);
+  if (!overlay) return answer(c, r, errorReply(400, "overlay: the only overlay is saturation"));
+  LiveViewRequest request;
+  request.camera = r.route.name;
+  request.saturation_overlay = *overlay;
+  try {
+    pending->live = service.openLiveView(request);
+  } catch (const ServiceError& e) {
+    return answer(c, r, errorReply(e.httpStatus(), std::string("no snapshot: ") + e.what()));
+  } catch (const std::exception& e) {
+    log("internal error opening a snapshot: " + std::string(e.what()));
+    return answer(c, r, errorReply(500, std::string("internal error: ") + e.what()));
+  }
+  {
+    std::lock_guard lock(sse_mutex);
+    if (stopping) return answer(c, r, errorReply(503, "the server is stopping"));
+    r.snapshot = pending;
+    r.counted_snapshot = true;
+    ++snapshots_in_flight;
+    // Suspended before the pump can see it, so its resume always follows.
+    MHD_suspend_connection(c);
+    snapshots.push_back(std::move(pending));
+  }
+  sse_cv.notify_all();
+  return MHD_YES;
+}
+
+// The pump's part for snapshots: each gets its picture, the live view's end
+// or a timeout as its reply, and is resumed.
+void ApiServer::serveSnapshots() {
+  std::vector<std::shared_ptr<PendingSnapshot>> done;
+  {
+    std::lock_guard lock(sse_mutex);
+    const auto now = Clock::now();
+    std::erase_if(snapshots, [&](const std::shared_ptr<PendingSnapshot>& p) {
+      std::optional<Reply> reply;
+      if (auto frame = p->live->next(std::chrono::milliseconds(0))) {
+        Reply ok;
+        ok.content_type = "image/jpeg";
+        ok.body = std::move(frame->jpeg);
+        ok.headers.emplace_back("X-Cylscan-Focus", formatNumber(frame->focus));
+        ok.headers.emplace_back("X-Cylscan-Saturated", formatNumber(frame->saturated));
+        reply = std::move(ok);
+      } else if (p->live->ended()) {
+        reply = errorReply(p->live->endStatus() != 0 ? p->live->endStatus() : 503,
+                           "no snapshot: " + p->live->endReason());
+      } else if (stopping) {
+        reply = errorReply(503, "the server is stopping");
+      } else if (now >= p->deadline) {
+        reply = errorReply(503, "no snapshot: camera " + p->camera + " gave no picture within " +
+                                    std::to_string(kSnapshotTimeout.count()) + " s");
+      }
+      if (!reply) return false;
+      std::lock_guard plock(p->mutex);
+      p->reply = std::move(reply);
+      done.push_back(p);
+      return true;
+    });
+  }
+  for (const auto& p : done) {
+    p->live.reset();  // the head stops taking pictures for it
+    MHD_resume_connection(p->connection);
+  }
+}
+
 void ApiServer::completed(const Request& r) {
   if (r.holds_calibration_upload) calibration_upload = false;
+  if (r.linger && r.fd >= 0) {
+    // libmicrohttpd closes its descriptor after this; the duplicate keeps
+    // the socket open (its answer sent, the write side shut) for draining.
+    const int fd = ::fcntl(r.fd, F_DUPFD_CLOEXEC, 0);
+    if (fd >= 0) {
+      std::lock_guard lock(sse_mutex);
+      if (stopping) {
+        ::close(fd);
+      } else {
+        lingering.push_back(Lingering{fd, Clock::now() + kLingerTime, 0});
+        sse_cv.notify_all();
+      }
+    }
+  }
+  if (r.counted_snapshot) {
+    std::lock_guard lock(sse_mutex);
+    --snapshots_in_flight;
+    sse_cv.notify_all();
+  }
   if (r.answered && !r.streaming) metrics.record(r.status, Clock::now() - r.start);
 }
 
@@ -744,7 +1004,9 @@ void ApiServer::pumpLoop() {
   while (true) {
     {
       std::unique_lock lock(sse_mutex);
-      sse_cv.wait(lock, [this] { return stopping || !sse_clients.empty(); });
+      sse_cv.wait(lock, [this] {
+        return stopping || !sse_clients.empty() || !snapshots.empty() || !lingering.empty();
+      });
       if (stopping) return;
       sse_cv.wait_for(lock, kPumpTick, [this] { return stopping; });
       if (stopping) return;
@@ -755,8 +1017,10 @@ void ApiServer::pumpLoop() {
     for (const auto& client : clients) {
       if (client->gone) continue;
       std::lock_guard lock(client->mutex);
-      if (!client->stream) continue;  // still being subscribed
-      if (!client->ended) {
+      if (!client->stream && !client->live) continue;  // still being subscribed
+      if (client->live) {
+        serveLive(*client, now);
+      } else if (!client->ended) {
         while (client->pending.size() < kSsePendingLimit) {
           auto event = client->stream->next(std::chrono::milliseconds(0));
           if (!event) break;
@@ -781,6 +1045,58 @@ void ApiServer::pumpLoop() {
     }
     dropHungUp(clients);
     clients.clear();  // a freed client's stream (its subscription) ends here
+    serveSnapshots();
+    drainLingering(now);
+  }
+}
+
+// Reads and drops what the lingering connections send, and closes each at
+// its end of stream, an error, its deadline or its byte budget.
+void ApiServer::drainLingering(Clock::time_point now) {
+  std::vector<Lingering> work;
+  {
+    std::lock_guard lock(sse_mutex);
+    work.swap(lingering);
+  }
+  if (work.empty()) return;
+  std::vector<char> scratch(64u << 10);
+  std::vector<Lingering> keep;
+  for (Lingering& l : work) {
+    bool done = now >= l.deadline || l.drained >= kLingerBytes;
+    std::size_t this_tick = 0;
+    while (!done && this_tick < kLingerBytesPerTick) {
+      const ssize_t n = ::recv(l.fd, scratch.data(), scratch.size(), MSG_DONTWAIT);
+      if (n > 0) {
+        this_tick += static_cast<std::size_t>(n);
+        l.drained += static_cast<std::size_t>(n);
+        continue;
+      }
+      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) break;
+      done = true;  // the client closed its side, or the connection failed
+    }
+    if (done) {
+      ::close(l.fd);
+    } else {
+      keep.push_back(l);
+    }
+  }
+  std::lock_guard lock(sse_mutex);
+  for (Lingering& l : keep)
+    lingering.push_back(l);
+}
+
+// A live view's newest picture once the last one is sent (a slow client
+// skips pictures instead of queueing them), and the closing boundary when it
+// ends (client->mutex held).
+void ApiServer::serveLive(SseClient& client, Clock::time_point now) {
+  if (client.ended) return;
+  if (client.pending.empty()) {
+    if (auto frame = client.live->next(std::chrono::milliseconds(0)))
+      client.append(formatPart(*frame), now);
+  }
+  if (client.live->ended()) {
+    client.append("--" + std::string(kLiveBoundary) + "--\r\n", now);
+    client.ended = true;
   }
 }
 

@@ -64,7 +64,7 @@ bool isGet(std::string_view method) {
 
 // Checks `method` against the path's methods: 0 or 405 with Allow.
 Route withMethods(Endpoint endpoint, std::string_view method, bool get, bool post, bool put,
-                  bool del) {
+                  bool del, bool patch = false) {
   Route r;
   r.endpoint = endpoint;
   std::string allow;
@@ -76,8 +76,10 @@ Route withMethods(Endpoint endpoint, std::string_view method, bool get, bool pos
   if (post) add("POST");
   if (put) add("PUT");
   if (del) add("DELETE");
+  if (patch) add("PATCH");
   const bool ok = (get && isGet(method)) || (post && method == "POST") ||
-                  (put && method == "PUT") || (del && method == "DELETE");
+                  (put && method == "PUT") || (del && method == "DELETE") ||
+                  (patch && method == "PATCH");
   if (!ok) {
     r.status = 405;
     r.error = "method " + std::string(method) + " is not allowed here (allowed: " + allow + ")";
@@ -100,6 +102,17 @@ std::string scanFileNameList() {
 Route parameterNotFound(Route r, std::string error) {
   r.param_status = 404;
   r.error = std::move(error);
+  return r;
+}
+
+// `r` for the camera `name`: 404 after the method check when the name
+// breaks the board's rule (isCameraName).
+Route withCamera(Route r, std::string_view name) {
+  if (r.status != 0) return r;
+  if (!isCameraName(name)) {
+    return parameterNotFound(std::move(r), "no such camera: the name is not a valid camera name");
+  }
+  r.name = std::string(name);
   return r;
 }
 
@@ -168,6 +181,23 @@ Route route(std::string_view method, std::string_view path) {
       }
       return notFound(path);
     }
+    if (what == "cameras") {
+      if (s.size() == 3) return withMethods(Endpoint::Cameras, method, true, false, false, false);
+      if (s.size() == 4 || s.size() == 5) {
+        Route r;
+        if (s.size() == 4) {
+          r = withMethods(Endpoint::Camera, method, false, false, false, false, true);
+        } else if (s[4] == "snapshot.jpg") {
+          r = withMethods(Endpoint::CameraSnapshot, method, true, false, false, false);
+        } else if (s[4] == "stream.mjpg") {
+          r = withMethods(Endpoint::CameraStream, method, true, false, false, false);
+        } else {
+          return notFound(path);
+        }
+        return withCamera(std::move(r), s[3]);
+      }
+      return notFound(path);
+    }
     if (what == "head" && s.size() == 3) {
       return withMethods(Endpoint::Head, method, true, false, true, false);
     }
@@ -177,13 +207,7 @@ Route route(std::string_view method, std::string_view path) {
       }
       if (s.size() == 4) {
         Route r = withMethods(Endpoint::CalibrationFile, method, true, false, false, false);
-        if (r.status != 0) return r;
-        if (!isCameraName(s[3])) {
-          return parameterNotFound(std::move(r),
-                                   "no such camera: the name is not a valid camera name");
-        }
-        r.name = std::string(s[3]);
-        return r;
+        return withCamera(std::move(r), s[3]);
       }
     }
     return notFound(path);

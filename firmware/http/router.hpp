@@ -23,6 +23,10 @@ enum class Endpoint {
   Head,             // /api/v1/head
   Calibration,      // /api/v1/calibration
   CalibrationFile,  // /api/v1/calibration/{camera}
+  Cameras,          // /api/v1/cameras
+  Camera,           // /api/v1/cameras/{name} (name = the camera)
+  CameraSnapshot,   // /api/v1/cameras/{name}/snapshot.jpg
+  CameraStream,     // /api/v1/cameras/{name}/stream.mjpg
   Events,           // /api/v1/events
   Metrics,          // /metrics
   Static,           // anything else outside /api/: a file under web_root

@@ -12,6 +12,7 @@
 
 #include "algo/quasi_calibration.hpp"
 #include "firmware/daemon/scan_service.hpp"
+#include "tests/daemon/service_test_support.hpp"
 #include "tests/support/ring_board.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -36,11 +37,7 @@ struct RingHead {
   TempDir board_dir, data_dir;
   fs::path board = test_support::ringBoard(board_dir);
   ScanServiceOptions options() const {
-    ScanServiceOptions o;
-    o.board = board;
-    o.data_dir = data_dir.path();
-    o.version = "test";
-    return o;
+    return test_support::serviceOptions(board, data_dir.path());
   }
 };
 

@@ -17,6 +17,7 @@
 #include "formats/images.hpp"
 #include "formats/png.hpp"
 #include "formats/point_cloud.hpp"
+#include "tests/daemon/service_test_support.hpp"
 #include "tests/support/small_board.hpp"
 #include "tests/support/temp_dir.hpp"
 
@@ -26,6 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using nlohmann::json;
+using test_support::errorOf;
 using test_support::smallBoard;
 using test_support::TempDir;
 
@@ -38,24 +40,9 @@ struct Head {
   explicit Head(const std::vector<std::pair<std::string, std::string>>& replace = {})
       : board(smallBoard(board_dir, test_support::kWallScene, replace)) {}
   ScanServiceOptions options() const {
-    ScanServiceOptions o;
-    o.board = board;
-    o.data_dir = data_dir.path();
-    o.version = "test";
-    return o;
+    return test_support::serviceOptions(board, data_dir.path());
   }
 };
-
-// The ServiceError of `f`, which must throw one.
-template <typename F>
-ServiceError errorOf(F&& f) {
-  try {
-    f();
-  } catch (const ServiceError& e) {
-    return e;
-  }
-  return ServiceError(0, "(no ServiceError)");
-}
 
 // Events until the scan `id` is done or failed (or the wait ends).
 std::vector<HeadEvent> eventsUntilFinished(EventStream& stream, const std::string& id) {

@@ -65,6 +65,44 @@ class FakeStream : public firmware::EventStream {
   std::shared_ptr<FakeQueue> q_;
 };
 
+// A live view the test feeds: pictures pushed, or an end with its status.
+struct FakeLiveFeed {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::deque<firmware::LiveFrame> frames;
+  std::string end_reason;
+  int end_status = 0;
+};
+
+class FakeLive : public firmware::LiveStream {
+ public:
+  explicit FakeLive(std::shared_ptr<FakeLiveFeed> feed) : feed_(std::move(feed)) {}
+  std::optional<firmware::LiveFrame> next(std::chrono::milliseconds timeout) override {
+    std::unique_lock lock(feed_->mutex);
+    feed_->cv.wait_for(lock, timeout,
+                       [&] { return !feed_->frames.empty() || !feed_->end_reason.empty(); });
+    if (feed_->frames.empty()) return std::nullopt;
+    auto frame = std::move(feed_->frames.front());
+    feed_->frames.pop_front();
+    return frame;
+  }
+  bool ended() const override {
+    std::lock_guard lock(feed_->mutex);
+    return !feed_->end_reason.empty() && feed_->frames.empty();
+  }
+  std::string endReason() const override {
+    std::lock_guard lock(feed_->mutex);
+    return feed_->end_reason;
+  }
+  int endStatus() const override {
+    std::lock_guard lock(feed_->mutex);
+    return feed_->end_status;
+  }
+
+ private:
+  std::shared_ptr<FakeLiveFeed> feed_;
+};
+
 // Scripted answers; every call is recorded so a test can tell what reached
 // the service (and what did not).
 class FakeService : public firmware::HeadService {
@@ -86,6 +124,10 @@ class FakeService : public firmware::HeadService {
   int start_calls = 0, delete_calls = 0, install_calls = 0, head_installs = 0;
   json last_options;
   std::string last_camera, last_bytes, last_head;
+  json cameras_json = json::array();
+  json last_controls;
+  std::optional<firmware::ServiceError> camera_error;
+  std::vector<firmware::LiveViewRequest> live_requests;
 
   json status() const override {
     std::lock_guard lock(mutex);
@@ -167,6 +209,47 @@ class FakeService : public firmware::HeadService {
     std::lock_guard lock(mutex);
     return metrics;
   }
+  json cameras() const override {
+    std::lock_guard lock(mutex);
+    return cameras_json;
+  }
+  json setCameraControls(std::string_view camera, const json& controls) override {
+    std::lock_guard lock(mutex);
+    last_camera = camera;
+    last_controls = controls;
+    if (camera_error) throw *camera_error;
+    return json{{"name", std::string(camera)}, {"controls", controls}};
+  }
+  std::unique_ptr<firmware::LiveStream> openLiveView(
+      const firmware::LiveViewRequest& request) override {
+    std::lock_guard lock(mutex);
+    live_requests.push_back(request);
+    if (camera_error) throw *camera_error;
+    auto feed = std::make_shared<FakeLiveFeed>();
+    feeds_.push_back(feed);
+    return std::make_unique<FakeLive>(feed);
+  }
+  // The live views the HTTP layer still holds.
+  std::vector<std::shared_ptr<FakeLiveFeed>> liveFeeds() {
+    std::lock_guard lock(mutex);
+    std::vector<std::shared_ptr<FakeLiveFeed>> out;
+    std::erase_if(feeds_, [](const auto& w) { return w.expired(); });
+    for (const auto& w : feeds_) {
+      if (auto f = w.lock()) out.push_back(f);
+    }
+    return out;
+  }
+  static void pushPicture(FakeLiveFeed& feed, firmware::LiveFrame frame) {
+    std::lock_guard lock(feed.mutex);
+    feed.frames.push_back(std::move(frame));
+    feed.cv.notify_all();
+  }
+  static void endLive(FakeLiveFeed& feed, int status, std::string reason) {
+    std::lock_guard lock(feed.mutex);
+    feed.end_status = status;
+    feed.end_reason = std::move(reason);
+    feed.cv.notify_all();
+  }
 
   // Events for every live subscriber.
   void publish(const std::string& name, const json& data) {
@@ -203,6 +286,7 @@ class FakeService : public firmware::HeadService {
   }
 
   std::vector<std::weak_ptr<FakeQueue>> queues_;
+  std::vector<std::weak_ptr<FakeLiveFeed>> feeds_;
   std::atomic<std::uint64_t> seq_{0};
 };
 
@@ -382,6 +466,14 @@ class RawSocket {
   std::string received_;
   bool peer_closed_ = false;
 };
+
+// How many times `what` occurs in `text`.
+inline std::size_t countOf(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1))
+    ++n;
+  return n;
+}
 
 // The status code of a raw response ("HTTP/1.1 404 Not Found…"), 0 if none.
 inline int statusOf(const std::string& response) {

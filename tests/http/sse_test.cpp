@@ -18,6 +18,7 @@ namespace cylscan::firmware {
 namespace {
 
 using nlohmann::json;
+using test_support::countOf;
 using test_support::curlRequest;
 using test_support::eventually;
 using test_support::FakeService;
@@ -54,13 +55,6 @@ std::vector<Event> parseEvents(const std::string& text) {
     }
   }
   return events;
-}
-
-std::size_t countOf(const std::string& text, const std::string& what) {
-  std::size_t n = 0;
-  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1))
-    ++n;
-  return n;
 }
 
 std::size_t threadCount() {
