@@ -1,57 +1,26 @@
 // SPDX-License-Identifier: Apache-2.0
 // cylscan calibrate: the quasi-calibration (paper Eq. 10) from plane poses,
 // each a capture bundle with the cameras main and aux (docs/formats.md,
-// command line).
-//
-// For each pose: the absolute phase of main and aux (the phase engine), the
-// phase-based stereo points (PhaseStereo, main camera frame), a robust plane
-// fit of those points (the noise-reduced reference geometry of the board),
-// and the target XYZ of every valid main pixel = its viewing ray (intrinsics
-// and distortion) ∩ the fitted plane. A main pixel counts when its phase is
-// valid and its stereo point, if it has one, lies within the plane tolerance
-// (a pixel aux cannot see still has a ray and a plane; with
-// --stereo-pixels-only it must have a stereo inlier).
-//
-// Memory: poses are processed one at a time; the fitter holds O(pixels) sums.
-// For the residual pass (Eq. 12) each pose keeps only its masked phase map
-// (4 bytes a pixel, ~3.2 MB at 1000×800) and its plane: the targets are
-// recomputed from the rays, so no bundle is read twice.
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
+// command line); the solve is firmware/quasi_solve.hpp's.
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
-#include <limits>
 #include <memory>
-#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
 
-#include "algo/phase_stereo.hpp"
 #include "algo/quasi_calibration.hpp"
-#include "algo/ray_plane.hpp"
-#include "algo/surface_fit.hpp"
-#include "firmware/scan_output.hpp"
+#include "firmware/quasi_solve.hpp"
+#include "firmware/stopwatch.hpp"
 #include "formats/atomic_file.hpp"
-#include "formats/capture_bundle.hpp"
-#include "formats/input_error.hpp"
 #include "formats/stereo_calibration.hpp"
-#include "tools/bundle_phase.hpp"
 #include "tools/commands.hpp"
-#include "tools/plane_pose.hpp"
-#include "tools/scene_truth.hpp"
-#include "tools/stereo_geometry.hpp"
-#include "tools/stopwatch.hpp"
 
 namespace cylscan::tools {
 namespace {
-
-namespace fs = std::filesystem;
 
 struct CalibrateRequest {
   std::string stereo;
@@ -64,159 +33,78 @@ struct CalibrateRequest {
   bool json = false;
 };
 
-std::vector<formats::CaptureBundleReader> openBundles(const CalibrateRequest& request) {
-  std::vector<formats::CaptureBundleReader> bundles;
-  for (const auto& dir : request.bundles) {
-    bundles.emplace_back(dir);
-    requireCamera(bundles.back(), "main");
-    requireCamera(bundles.back(), "aux");
-  }
-  return bundles;
-}
-
-void requireSizes(const std::vector<formats::CaptureBundleReader>& bundles,
-                  const formats::StereoCalibration& stereo, const fs::path& stereo_file) {
-  for (const auto& bundle : bundles) {
-    for (const char* camera : {"main", "aux"}) {
-      requireStereoImageSize(stereo_file, stereo, bundle.frameSize(camera), bundle.dir() / camera);
-    }
-  }
-}
-
-std::size_t finiteCount(const cv::Mat& phase) {
-  std::size_t count = 0;
-  for (int v = 0; v < phase.rows; ++v) {
-    const float* row = phase.ptr<float>(v);
-    for (int u = 0; u < phase.cols; ++u)
-      count += std::isfinite(row[u]) ? 1 : 0;
-  }
-  return count;
-}
-
-// The poses' median order-residual spread, over those that measured one.
-double medianSpread(const std::vector<PlanePose>& poses) {
-  std::vector<double> spreads;
-  for (const PlanePose& pose : poses)
-    if (pose.order_residual.samples > 0) spreads.push_back(pose.order_residual.spread_rad);
-  if (spreads.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const auto middle = spreads.begin() + static_cast<std::ptrdiff_t>(spreads.size() / 2);
-  std::nth_element(spreads.begin(), middle, spreads.end());
-  return *middle;
-}
-
-nlohmann::json summaryJson(const CalibrateRequest& request, const std::vector<PlanePose>& poses,
-                           const algo::QuasiCalibration& calib,
-                           const algo::CalibrationResiduals& residuals,
+nlohmann::json summaryJson(const CalibrateRequest& request,
+                           const firmware::QuasiSolveResult& result,
                            const nlohmann::json& timings) {
   nlohmann::json pose_list = nlohmann::json::array();
-  for (std::size_t i = 0; i < poses.size(); ++i) {
-    const PlanePose& p = poses[i];
-    const algo::PoseResidual& r = residuals.poses[i];
-    pose_list.push_back(
-        {{"bundle", p.bundle},
-         {"rmse_mm", r.depth_rmse_mm},
-         {"distance_rmse_mm", r.distance_rmse_mm},
-         {"pixels", r.pixel_count},
-         {"target_pixels", p.target_pixels},
-         {"stereo_points", p.stereo_points},
-         {"plane_inliers", p.plane_inliers},
-         {"plane_fit_rmse_mm", p.plane_rmse_mm},
-         {"plane", {{"point", vec3Json(p.plane.point)}, {"normal", vec3Json(p.plane.normal)}}},
-         {"main_valid_fraction", p.main_valid_fraction},
-         {"aux_valid_fraction", p.aux_valid_fraction},
-         {"order_residual", firmware::orderResidualJson(p.order_residual)},
-         {"ms", p.ms}});
-  }
+  for (const auto& pose : result.poses)
+    pose_list.push_back(firmware::quasiPoseJson(pose));
+  const algo::QuasiCalibration& calib = result.calibration;
   const double area = calib.size().area();
   return {{"width", calib.size().width},
           {"height", calib.size().height},
           {"phase", request.phase},
           {"poses", pose_list},
-          {"pooled_rmse_mm", residuals.pooled_depth_rmse_mm},
-          {"pooled_distance_rmse_mm", residuals.pooled_distance_rmse_mm},
-          {"sensitivity_mm_per_rad", residuals.sensitivity_mm_per_rad},
+          {"pooled_rmse_mm", result.pooled_rmse_mm},
+          {"pooled_distance_rmse_mm", result.pooled_distance_rmse_mm},
+          {"sensitivity_mm_per_rad", result.sensitivity_mm_per_rad},
           {"order_centre_rad", calib.info().order_centre_rad},
-          {"residual_pixels", residuals.pixel_count},
+          {"residual_pixels", result.residual_pixels},
           {"valid_pixels", calib.validCount()},
           {"valid_fraction", static_cast<double>(calib.validCount()) / area},
           {"timings_ms", timings},
           {"out", request.out}};
 }
 
-void printSummary(const std::vector<PlanePose>& poses, const algo::QuasiCalibration& calib,
-                  const algo::CalibrationResiduals& residuals) {
+void printSummary(const firmware::QuasiSolveResult& result) {
+  const algo::QuasiCalibration& calib = result.calibration;
   std::cout << std::fixed << std::setprecision(3);
-  std::cout << "calibrate: " << poses.size() << " poses, " << calib.validCount() << " of "
+  std::cout << "calibrate: " << result.poses.size() << " poses, " << calib.validCount() << " of "
             << calib.size().area() << " pixels calibrated\n";
-  for (std::size_t i = 0; i < poses.size(); ++i) {
-    std::cout << "  " << poses[i].bundle << ": RMSE " << residuals.poses[i].depth_rmse_mm
-              << " mm (plane fit of " << poses[i].plane_inliers << " stereo points: RMSE "
-              << poses[i].plane_rmse_mm << " mm)\n";
+  for (const auto& pose : result.poses) {
+    std::cout << "  " << pose.bundle << ": RMSE " << pose.rmse_mm << " mm (plane fit of "
+              << pose.plane_inliers << " stereo points: RMSE " << pose.plane_rmse_mm << " mm)\n";
   }
-  std::cout << "  pooled RMSE " << residuals.pooled_depth_rmse_mm << " mm, S_eff "
-            << residuals.sensitivity_mm_per_rad << " mm/rad\n";
+  std::cout << "  pooled RMSE " << result.pooled_rmse_mm << " mm, S_eff "
+            << result.sensitivity_mm_per_rad << " mm/rad\n";
+}
+
+// The solve, its errors in the command's words.
+firmware::QuasiSolveResult solve(const CalibrateRequest& request) {
+  firmware::QuasiSolveOptions options;
+  options.phase = parsePhaseSource(request.phase);
+  options.min_poses = request.min_poses;
+  options.plane_tolerance_mm = request.plane_tolerance_mm;
+  options.stereo_pixels_only = request.stereo_pixels_only;
+  options.stereo_file = request.stereo;
+  try {
+    // Counted before the stereo file is read: the request itself is short.
+    firmware::requireEnoughPoses(request.bundles.size(), request.min_poses);
+    const formats::StereoCalibration stereo = formats::readStereoCalibration(request.stereo);
+    return firmware::solveQuasiCalibration(
+        stereo, std::vector<std::filesystem::path>(request.bundles.begin(), request.bundles.end()),
+        options);
+  } catch (const firmware::TooFewPoses& e) {
+    throw std::invalid_argument(std::string("calibrate: ") + e.what());
+  } catch (const firmware::NoPixelCalibrated& e) {
+    throw std::runtime_error(std::string("calibrate: ") + e.what() + "; nothing written");
+  }
 }
 
 void runCalibrate(const CalibrateRequest& request) {
-  Stopwatch total;
-  const PhaseSource choice = parsePhaseSource(request.phase);
-  if (static_cast<int>(request.bundles.size()) < request.min_poses) {
-    throw std::invalid_argument("calibrate: " + std::to_string(request.bundles.size()) +
-                                " plane poses given, at least " +
-                                std::to_string(request.min_poses) + " are needed");
-  }
-  const formats::StereoCalibration stereo = formats::readStereoCalibration(request.stereo);
-  const std::vector<formats::CaptureBundleReader> bundles = openBundles(request);
-  requireSizes(bundles, stereo, request.stereo);
-
-  const algo::RayMap rays(mainCamera(stereo));
-  PlanePoseOptions pose_options;
-  pose_options.phase = choice;
-  pose_options.plane_tolerance_mm = request.plane_tolerance_mm;
-  pose_options.stereo_pixels_only = request.stereo_pixels_only;
-  const PlanePoseMeasurer measurer(toStereoGeometry(stereo), pose_options);
-  algo::QuasiCalibrationOptions options;
-  options.min_poses = request.min_poses;
-  options.phase_source = choice == PhaseSource::High ? PhaseSource::High : PhaseSource::Fused;
-  algo::QuasiCalibrationFitter fitter(rays.size(), options);
-  std::vector<PlanePose> poses;
-  Stopwatch watch;
-  PoseOrderReference order_reference;
-  for (const auto& bundle : bundles) {
-    PlanePose pose = measurer.measure(bundle, order_reference.value());
-    order_reference.follow(pose);
-    const cv::Mat target = algo::intersectRaysWithPlane(rays, pose.plane);
-    fitter.addPose(pose.phase, target);
-    pose.target_pixels = finiteCount(pose.phase);
-    poses.push_back(std::move(pose));
-  }
-  const double measure_ms = watch.lapMs();
-  algo::QuasiCalibration calib = fitter.fit();
-  if (calib.validCount() == 0) {
-    throw std::runtime_error("calibrate: no pixel was seen in " +
-                             std::to_string(request.min_poses) + " poses; nothing written");
-  }
-  const double fit_ms = watch.lapMs();
-  algo::QuasiCalibrationResiduals pass(calib);
-  for (const auto& pose : poses) {
-    pass.addPose(pose.phase, algo::intersectRaysWithPlane(rays, pose.plane));
-  }
-  const algo::CalibrationResiduals residuals = pass.result();
-  calib.setResidualSummary(static_cast<float>(residuals.pooled_depth_rmse_mm),
-                           static_cast<float>(residuals.sensitivity_mm_per_rad));
-  if (const std::optional<double> centre = order_reference.value())
-    calib.setOrderResidual(static_cast<float>(*centre), static_cast<float>(medianSpread(poses)));
-  const double residual_ms = watch.lapMs();
-  formats::writeFileAtomically(request.out, calib.serialize());
-  const nlohmann::json timings = {{"measure", measure_ms},
-                                  {"fit", fit_ms},
-                                  {"residuals", residual_ms},
+  firmware::Stopwatch total;
+  const firmware::QuasiSolveResult result = solve(request);
+  firmware::Stopwatch watch;
+  formats::writeFileAtomically(request.out, result.calibration.serialize());
+  const nlohmann::json timings = {{"measure", result.timings.measure_ms},
+                                  {"fit", result.timings.fit_ms},
+                                  {"residuals", result.timings.residuals_ms},
                                   {"write", watch.lapMs()},
                                   {"total", total.elapsedMs()}};
   if (request.json) {
-    std::cout << summaryJson(request, poses, calib, residuals, timings).dump() << "\n";
+    std::cout << summaryJson(request, result, timings).dump() << "\n";
   } else {
-    printSummary(poses, calib, residuals);
+    printSummary(result);
   }
 }
 

@@ -26,12 +26,12 @@
 #include "algo/head_extrinsics.hpp"
 #include "algo/sphere_search.hpp"
 #include "algo/surface_fit.hpp"
+#include "firmware/stopwatch.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/head_extrinsics.hpp"
 #include "formats/input_error.hpp"
 #include "tools/camera_reconstruction.hpp"
 #include "tools/commands.hpp"
-#include "tools/stopwatch.hpp"
 
 namespace cylscan::tools {
 namespace {
@@ -149,7 +149,7 @@ formats::HeadExtrinsics headOf(const algo::HeadExtrinsicsSolution& solution,
 }
 
 void runCalibrateHead(const CalibrateHeadRequest& request) {
-  Stopwatch total;
+  firmware::Stopwatch total;
   if (request.spheres < 3 || request.spheres > 8) {
     throw std::invalid_argument("calibrate-head: --spheres must be 3 to 8");
   }

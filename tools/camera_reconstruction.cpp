@@ -4,9 +4,9 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "firmware/stopwatch.hpp"
 #include "formats/input_error.hpp"
 #include "tools/cloud_output.hpp"
-#include "tools/stopwatch.hpp"
 
 namespace cylscan::tools {
 
@@ -33,7 +33,7 @@ CameraReconstruction reconstructCamera(const formats::CaptureBundleReader& bundl
                                        const std::string& camera, const fs::path& calib_file,
                                        const std::string& phase) {
   const algo::QuasiCalibration calib = readQuasiCalibration(calib_file);
-  requireCamera(bundle, camera);
+  firmware::requireCamera(bundle, camera);
   try {
     calib.requireImageSize(bundle.frameSize(camera));
   } catch (const std::invalid_argument& e) {
@@ -48,14 +48,14 @@ CameraReconstruction reconstructCamera(const formats::CaptureBundleReader& bundl
     throw formats::InputError(calib_file, "calibrated on the " + std::string(toString(recorded)) +
                                               " phase, but --phase " + phase + " was asked");
   }
-  Stopwatch watch;
-  BundlePhaseOptions phase_options;
+  firmware::Stopwatch watch;
+  firmware::BundlePhaseOptions phase_options;
   phase_options.order_reference_rad = firmware::orderReference(calib.info());
-  const BundlePhase maps = computeBundlePhase(bundle, camera, phase_options);
+  const firmware::BundlePhase maps = firmware::computeBundlePhase(bundle, camera, phase_options);
   out.phase_ms = watch.lapMs();
   if (auto warning = firmware::orderDriftWarning(camera, maps.maps.order_residual, calib.info()))
     out.warnings.push_back(std::move(*warning));
-  out.xyz = calib.evaluate(absolutePhase(maps.maps, out.phase));
+  out.xyz = calib.evaluate(firmware::absolutePhase(maps.maps, out.phase));
   out.reconstruct_ms = watch.lapMs();
   out.texture = maps.maps.texture;
   out.phase_valid_fraction = maps.maps.valid_fraction;

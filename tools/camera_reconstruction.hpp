@@ -10,8 +10,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "firmware/bundle_phase.hpp"
 #include "formats/capture_bundle.hpp"
-#include "tools/bundle_phase.hpp"
 
 namespace cylscan::tools {
 

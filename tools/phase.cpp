@@ -12,12 +12,12 @@
 #include <opencv2/core.hpp>
 
 #include "algo/phase_engine.hpp"
+#include "firmware/bundle_phase.hpp"
 #include "firmware/scan_output.hpp"
+#include "firmware/stopwatch.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/images.hpp"
-#include "tools/bundle_phase.hpp"
 #include "tools/commands.hpp"
-#include "tools/stopwatch.hpp"
 
 namespace cylscan::tools {
 namespace {
@@ -83,12 +83,14 @@ nlohmann::json summaryOf(const PhaseRequest& request, const formats::CaptureBund
 // A bundle with one set: the wrapped phase, modulation and texture of that set;
 // nothing absolute is written.
 void runOneSetPhase(const PhaseRequest& request, const formats::CaptureBundleReader& bundle,
-                    FringeSet set, const BundlePhaseOptions& options, const Stopwatch& total) {
-  const BundleSetPhase phase = computeBundleSetPhase(bundle, request.camera, set, options);
+                    FringeSet set, const firmware::BundlePhaseOptions& options,
+                    const firmware::Stopwatch& total) {
+  const firmware::BundleSetPhase phase =
+      firmware::computeBundleSetPhase(bundle, request.camera, set, options);
   const algo::OneSetMaps& maps = phase.maps;
   const std::string name(toString(set));
 
-  Stopwatch write_watch;
+  firmware::Stopwatch write_watch;
   const fs::path out(request.out);
   fs::create_directories(out);
   formats::writeFloatTiff(out / ("wrapped_" + name + ".tiff"), maps.wrapped);
@@ -118,22 +120,22 @@ void runOneSetPhase(const PhaseRequest& request, const formats::CaptureBundleRea
 }
 
 void runPhase(const PhaseRequest& request) {
-  Stopwatch total;
+  firmware::Stopwatch total;
   // The one reader of the one-set extension (docs/formats.md): a bundle with a
   // single set still has a wrapped phase to give.
   const formats::CaptureBundleReader bundle(request.bundle, {}, formats::SetsRequired::OneOrBoth);
-  BundlePhaseOptions options;
+  firmware::BundlePhaseOptions options;
   options.bit_depth = request.bit_depth;
   options.min_modulation = request.min_modulation;
   options.reference = request.reference;
-  if (const std::optional<FringeSet> only = onlySetOf(bundle, request.camera)) {
+  if (const std::optional<FringeSet> only = firmware::onlySetOf(bundle, request.camera)) {
     runOneSetPhase(request, bundle, *only, options, total);
     return;
   }
-  const BundlePhase phase = computeBundlePhase(bundle, request.camera, options);
+  const firmware::BundlePhase phase = firmware::computeBundlePhase(bundle, request.camera, options);
   const algo::PhaseMaps& maps = phase.maps;
 
-  Stopwatch write_watch;
+  firmware::Stopwatch write_watch;
   const fs::path out(request.out);
   fs::create_directories(out);
   formats::writeFloatTiff(out / "wrapped_high.tiff", maps.wrapped_high);

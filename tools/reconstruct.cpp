@@ -23,6 +23,9 @@
 
 #include "algo/phase_stereo.hpp"
 #include "algo/quasi_calibration.hpp"
+#include "firmware/bundle_phase.hpp"
+#include "firmware/stereo_geometry.hpp"
+#include "firmware/stopwatch.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/file_reading.hpp"
 #include "formats/head_extrinsics.hpp"
@@ -30,12 +33,9 @@
 #include "formats/input_error.hpp"
 #include "formats/point_cloud.hpp"
 #include "formats/stereo_calibration.hpp"
-#include "tools/bundle_phase.hpp"
 #include "tools/camera_reconstruction.hpp"
 #include "tools/cloud_output.hpp"
 #include "tools/commands.hpp"
-#include "tools/stereo_geometry.hpp"
-#include "tools/stopwatch.hpp"
 
 namespace cylscan::tools {
 namespace {
@@ -117,7 +117,7 @@ struct Reconstruction {
 Reconstruction reconstructQuasi(const ReconstructRequest& request,
                                 const formats::CaptureBundleReader& bundle) {
   const algo::QuasiCalibration calib = readQuasiCalibration(request.calib);
-  requireCamera(bundle, "main");
+  firmware::requireCamera(bundle, "main");
   try {
     calib.requireImageSize(bundle.frameSize("main"));
   } catch (const std::invalid_argument& e) {
@@ -126,14 +126,14 @@ Reconstruction reconstructQuasi(const ReconstructRequest& request,
   }
   Reconstruction out;
   out.phase = phaseForCalibration(request, calib);
-  Stopwatch watch;
-  BundlePhaseOptions phase_options;
+  firmware::Stopwatch watch;
+  firmware::BundlePhaseOptions phase_options;
   phase_options.order_reference_rad = firmware::orderReference(calib.info());
-  const BundlePhase main = computeBundlePhase(bundle, "main", phase_options);
+  const firmware::BundlePhase main = firmware::computeBundlePhase(bundle, "main", phase_options);
   out.phase_ms = watch.lapMs();
   if (auto warning = firmware::orderDriftWarning("main", main.maps.order_residual, calib.info()))
     out.warnings.push_back(std::move(*warning));
-  out.xyz = calib.evaluate(absolutePhase(main.maps, out.phase));
+  out.xyz = calib.evaluate(firmware::absolutePhase(main.maps, out.phase));
   out.reconstruct_ms = watch.lapMs();
   out.texture = main.maps.texture;
   out.phase_valid_fraction = main.maps.valid_fraction;
@@ -143,25 +143,27 @@ Reconstruction reconstructQuasi(const ReconstructRequest& request,
 Reconstruction reconstructStereo(const ReconstructRequest& request,
                                  const formats::CaptureBundleReader& bundle) {
   const formats::StereoCalibration stereo = formats::readStereoCalibration(request.stereo);
-  requireCamera(bundle, "main");
-  requireCamera(bundle, "aux");
+  firmware::requireCamera(bundle, "main");
+  firmware::requireCamera(bundle, "aux");
   for (const char* camera : {"main", "aux"}) {
-    requireStereoImageSize(request.stereo, stereo, bundle.frameSize(camera), bundle.dir() / camera);
+    firmware::requireStereoImageSize(request.stereo, stereo, bundle.frameSize(camera),
+                                     bundle.dir() / camera);
   }
   Reconstruction out;
   out.phase = request.phase.empty() ? PhaseSource::Fused : parsePhaseSource(request.phase);
-  Stopwatch watch;
-  const BundlePhase main = computeBundlePhase(bundle, "main");
+  firmware::Stopwatch watch;
+  const firmware::BundlePhase main = firmware::computeBundlePhase(bundle, "main");
   // Stereo matches equal phases: aux numbers its orders about main's centre.
-  BundlePhaseOptions aux_options;
+  firmware::BundlePhaseOptions aux_options;
   if (main.maps.order_residual.samples > 0)
     aux_options.order_reference_rad = main.maps.order_residual.centre_rad;
-  const BundlePhase aux = computeBundlePhase(bundle, "aux", aux_options);
+  const firmware::BundlePhase aux = firmware::computeBundlePhase(bundle, "aux", aux_options);
   out.phase_ms = watch.lapMs();
-  const algo::PhaseStereo matcher(toStereoGeometry(stereo));
-  out.xyz =
-      matcher.reconstruct(absolutePhase(main.maps, out.phase), absolutePhase(aux.maps, out.phase))
-          .xyz;
+  const algo::PhaseStereo matcher(firmware::toStereoGeometry(stereo));
+  out.xyz = matcher
+                .reconstruct(firmware::absolutePhase(main.maps, out.phase),
+                             firmware::absolutePhase(aux.maps, out.phase))
+                .xyz;
   out.reconstruct_ms = watch.lapMs();
   out.texture = main.maps.texture;
   out.phase_valid_fraction = main.maps.valid_fraction;
@@ -170,7 +172,7 @@ Reconstruction reconstructStereo(const ReconstructRequest& request,
 
 // Every calibrated camera of the bundle, merged into the head frame.
 void runMerged(const ReconstructRequest& request) {
-  Stopwatch total;
+  firmware::Stopwatch total;
   const formats::CaptureBundleReader bundle(request.bundle);
   const std::vector<std::string> cameras = calibratedCameras(bundle, request.calib_dir);
   if (cameras.empty()) {
@@ -234,7 +236,7 @@ void runMerged(const ReconstructRequest& request) {
 }
 
 void runReconstruct(const ReconstructRequest& request) {
-  Stopwatch total;
+  firmware::Stopwatch total;
   checkMethodOptions(request);
   if (!request.calib_dir.empty()) {
     if (!request.phase.empty()) parsePhaseSource(request.phase);
@@ -245,7 +247,7 @@ void runReconstruct(const ReconstructRequest& request) {
   const formats::CaptureBundleReader bundle(request.bundle);
   const Reconstruction r = request.method == "quasi" ? reconstructQuasi(request, bundle)
                                                      : reconstructStereo(request, bundle);
-  Stopwatch watch;
+  firmware::Stopwatch watch;
   const formats::PointCloud cloud = cloudOfMaps(r.xyz, r.texture);
   formats::writePly(request.out, cloud);
   if (!request.depth.empty()) formats::writeFloatTiff(request.depth, depthOfMap(r.xyz));

@@ -13,6 +13,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -20,15 +21,16 @@
 #include <opencv2/core.hpp>
 
 #include "algo/stereo_refinement.hpp"
+#include "firmware/bundle_phase.hpp"
+#include "firmware/checkerboard_corners.hpp"
+#include "firmware/plane_pose.hpp"
+#include "firmware/stereo_geometry.hpp"
+#include "firmware/stopwatch.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/checkerboard_set.hpp"
 #include "formats/input_error.hpp"
 #include "formats/stereo_calibration.hpp"
-#include "tools/checkerboard_corners.hpp"
 #include "tools/commands.hpp"
-#include "tools/plane_pose.hpp"
-#include "tools/stereo_geometry.hpp"
-#include "tools/stopwatch.hpp"
 
 namespace cylscan::tools {
 namespace {
@@ -49,10 +51,11 @@ struct RefineStereoRequest {
 };
 
 algo::CheckerboardObservations observeBoards(const RefineStereoRequest& request, cv::Size size,
-                                             std::vector<Rejection>& rejected) {
+                                             std::vector<firmware::Rejection>& rejected) {
   const formats::CheckerboardSet set = formats::readCheckerboardSet(request.board);
-  cv::Size found;
-  const std::vector<PairCorners> pairs = detectPairs(set, found, rejected);
+  firmware::StereoCorners corners = firmware::detectStereoCorners(set);
+  rejected = std::move(corners.rejected);
+  const cv::Size found = corners.image_size;
   if (!found.empty() && found != size) {
     throw formats::InputError(
         request.board, "images are " + std::to_string(found.width) + "x" +
@@ -60,8 +63,8 @@ algo::CheckerboardObservations observeBoards(const RefineStereoRequest& request,
                            std::to_string(size.width) + "x" + std::to_string(size.height));
   }
   algo::CheckerboardObservations boards;
-  boards.object = boardPoints(set.board);
-  for (const auto& pair : pairs)
+  boards.object = firmware::boardPoints(set.board);
+  for (const auto& pair : corners.pairs)
     boards.views.push_back({pair.main, pair.aux});
   return boards;
 }
@@ -129,35 +132,35 @@ void printSummary(const json& s) {
 }
 
 void runRefineStereo(const RefineStereoRequest& request) {
-  Stopwatch total;
+  firmware::Stopwatch total;
   if (static_cast<int>(request.bundles.size()) < request.min_poses) {
     throw std::invalid_argument("refine-stereo: " + std::to_string(request.bundles.size()) +
                                 " plane poses given, at least " +
                                 std::to_string(request.min_poses) + " are needed");
   }
   const formats::StereoCalibration stereo = formats::readStereoCalibration(request.stereo);
-  const algo::StereoGeometry initial = toStereoGeometry(stereo);
+  const algo::StereoGeometry initial = firmware::toStereoGeometry(stereo);
   const cv::Size size = initial.main.image_size;
-  std::vector<Rejection> rejected;
+  std::vector<firmware::Rejection> rejected;
   const algo::CheckerboardObservations boards = observeBoards(request, size, rejected);
 
-  PlanePoseOptions pose_options;
+  firmware::PlanePoseOptions pose_options;
   pose_options.phase = parsePhaseSource(request.phase);
   pose_options.stereo_pixels_only = true;
   pose_options.keep_aux_phase = true;
-  const PlanePoseMeasurer measurer(initial, pose_options);
+  const firmware::PlanePoseMeasurer measurer(initial, pose_options);
   std::vector<algo::PlanePoseObservation> poses;
   std::vector<std::string> names;
-  Stopwatch watch;
-  PoseOrderReference order_reference;
+  firmware::Stopwatch watch;
+  firmware::PoseOrderReference order_reference;
   for (const auto& dir : request.bundles) {
     const formats::CaptureBundleReader bundle(dir);
-    requireCamera(bundle, "main");
-    requireCamera(bundle, "aux");
+    firmware::requireCamera(bundle, "main");
+    firmware::requireCamera(bundle, "aux");
     for (const char* camera : {"main", "aux"})
-      requireStereoImageSize(request.stereo, stereo, bundle.frameSize(camera),
-                             bundle.dir() / camera);
-    PlanePose pose = measurer.measure(bundle, order_reference.value());
+      firmware::requireStereoImageSize(request.stereo, stereo, bundle.frameSize(camera),
+                                       bundle.dir() / camera);
+    firmware::PlanePose pose = measurer.measure(bundle, order_reference.value());
     order_reference.follow(pose);
     poses.push_back({pose.phase, pose.phase_aux, cv::Mat(), pose.plane});
     names.push_back(pose.bundle);
@@ -170,7 +173,7 @@ void runRefineStereo(const RefineStereoRequest& request) {
   const algo::StereoRefinementResult result =
       algo::refineStereoWithPhase(initial, boards, poses, options);
   const double refine_ms = watch.lapMs();
-  formats::writeStereoCalibration(request.out, toStereoCalibration(result.geometry));
+  formats::writeStereoCalibration(request.out, firmware::toStereoCalibration(result.geometry));
 
   json pose_list = json::array();
   for (std::size_t i = 0; i < names.size(); ++i) {
@@ -196,7 +199,7 @@ void runRefineStereo(const RefineStereoRequest& request) {
                   {"out", request.out}};
   if (!request.truth.empty()) {
     const algo::StereoGeometry truth =
-        toStereoGeometry(formats::readStereoCalibration(request.truth));
+        firmware::toStereoGeometry(formats::readStereoCalibration(request.truth));
     summary["truth"] = {{"before", errorsAgainst(initial, truth)},
                         {"after", errorsAgainst(result.geometry, truth)}};
   }

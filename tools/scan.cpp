@@ -21,18 +21,18 @@
 
 #include "drivers/board.hpp"
 #include "firmware/acquisition.hpp"
+#include "firmware/bundle_phase.hpp"
 #include "firmware/bundle_sink.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/scan_output.hpp"
 #include "firmware/scan_plan.hpp"
 #include "firmware/shipped_boards.hpp"
+#include "firmware/stopwatch.hpp"
 #include "formats/images.hpp"
 #include "formats/input_error.hpp"
 #include "formats/point_cloud.hpp"
-#include "tools/bundle_phase.hpp"
 #include "tools/cloud_output.hpp"
 #include "tools/commands.hpp"
-#include "tools/stopwatch.hpp"
 
 namespace cylscan::tools {
 namespace {
@@ -107,7 +107,7 @@ void printRing(const firmware::RingLayout& ring) {
 }
 
 void runScan(const ScanRequest& request) {
-  Stopwatch total;
+  firmware::Stopwatch total;
   checkRequest(request);
   std::optional<algo::QuasiCalibration> calib;
   if (!request.calib.empty()) calib = readQuasiCalibration(request.calib);
@@ -150,7 +150,7 @@ void runScan(const ScanRequest& request) {
   }
 
   firmware::Acquisition acquisition(board);
-  Stopwatch watch;
+  firmware::Stopwatch watch;
   const firmware::ScanReport report = acquisition.run(options, plan, sinks);
   const double acquire_ms = watch.lapMs();
   if (bundle) bundle->commit();

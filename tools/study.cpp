@@ -28,6 +28,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "firmware/stopwatch.hpp"
 #include "formats/atomic_file.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/file_reading.hpp"
@@ -38,7 +39,6 @@
 #include "tools/report_plots.hpp"
 #include "tools/scene_truth.hpp"
 #include "tools/step_runner.hpp"
-#include "tools/stopwatch.hpp"
 #include "tools/study_metrics.hpp"
 #include "tools/study_report.hpp"
 
@@ -164,7 +164,7 @@ class Study {
 
   json run(const StudyDataset& data) {
     data_ = &data;
-    Stopwatch watch;
+    firmware::Stopwatch watch;
     json stereo = runner_.run(
         "calibrate-stereo", {"calibrate-stereo", "--board", (data.dir / "board").string(), "--out",
                              (work_ / "stereo.yaml").string()});
@@ -409,7 +409,7 @@ void rewriteReport(const StudyRequest& request) {
 
 void runStudy(const StudyRequest& request) {
   if (request.report_only) return rewriteReport(request);
-  Stopwatch total;
+  firmware::Stopwatch total;
   if ((request.width == 0) != (request.height == 0))
     throw std::invalid_argument("study: give both --width and --height");
   const fs::path out(request.out);

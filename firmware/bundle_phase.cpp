@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "tools/bundle_phase.hpp"
+#include "firmware/bundle_phase.hpp"
 
 #include <filesystem>
 #include <memory>
@@ -7,10 +7,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "firmware/stopwatch.hpp"
 #include "formats/input_error.hpp"
-#include "tools/stopwatch.hpp"
 
-namespace cylscan::tools {
+namespace cylscan::firmware {
 namespace {
 
 algo::FringeSetGeometry geometryOf(const formats::FringeSetInfo& set) {
@@ -152,4 +152,4 @@ BundleSetPhase computeBundleSetPhase(const formats::CaptureBundleReader& bundle,
   return out;
 }
 
-}  // namespace cylscan::tools
+}  // namespace cylscan::firmware

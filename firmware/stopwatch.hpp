@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
-// Wall-clock timing of the steps a subcommand reports.
+// Wall-clock timing of the steps a command or a calibration solve reports.
 #pragma once
 
 #include <chrono>
 
-namespace cylscan::tools {
+namespace cylscan::firmware {
 
 class Stopwatch {
  public:
@@ -26,4 +26,4 @@ class Stopwatch {
   Clock::time_point start_;
 };
 
-}  // namespace cylscan::tools
+}  // namespace cylscan::firmware

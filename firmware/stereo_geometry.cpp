@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "tools/stereo_geometry.hpp"
+#include "firmware/stereo_geometry.hpp"
 
 #include <string>
 
 #include "formats/input_error.hpp"
 
-namespace cylscan::tools {
+namespace cylscan::firmware {
 namespace {
 
 std::string sizeText(cv::Size size) {
@@ -52,4 +52,4 @@ void requireStereoImageSize(const std::filesystem::path& stereo_file,
                                              sizeText(size) + " images");
 }
 
-}  // namespace cylscan::tools
+}  // namespace cylscan::firmware

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
-// Shared by the subcommands: the stereo calibration file (docs/formats.md,
-// stereo calibration file) as the algorithms' geometry, and back.
+// The stereo calibration file (docs/formats.md, stereo calibration file) as
+// the algorithms' geometry, and back.
 #pragma once
 
 #include <filesystem>
@@ -11,7 +11,7 @@
 #include "algo/phase_stereo.hpp"
 #include "formats/stereo_calibration.hpp"
 
-namespace cylscan::tools {
+namespace cylscan::firmware {
 
 algo::PinholeCamera mainCamera(const formats::StereoCalibration& calib);
 algo::PinholeCamera auxCamera(const formats::StereoCalibration& calib);
@@ -24,4 +24,4 @@ void requireStereoImageSize(const std::filesystem::path& stereo_file,
                             const formats::StereoCalibration& calib, cv::Size size,
                             const std::filesystem::path& images);
 
-}  // namespace cylscan::tools
+}  // namespace cylscan::firmware

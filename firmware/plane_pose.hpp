@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
-// Shared by calibrate and refine-stereo: one plane pose of the calibration
-// (a capture bundle with main and aux), measured the paper's way: the
-// absolute phase of both cameras, the phase-based stereo points, and a robust
-// plane fit of those points, the noise-reduced reference geometry of the board.
+// One plane pose of the calibration (a capture bundle with main and aux), as
+// the quasi-calibration solve and refine-stereo measure it, the paper's way:
+// the absolute phase of both cameras, the phase-based stereo points, and a
+// robust plane fit of those points, the noise-reduced reference geometry of
+// the board.
 #pragma once
 
 #include <cstddef>
@@ -13,10 +14,10 @@
 
 #include "algo/geometry.hpp"
 #include "algo/phase_stereo.hpp"
+#include "firmware/bundle_phase.hpp"
 #include "formats/capture_bundle.hpp"
-#include "tools/bundle_phase.hpp"
 
-namespace cylscan::tools {
+namespace cylscan::firmware {
 
 struct PlanePoseOptions {
   PhaseSource phase = PhaseSource::Fused;
@@ -30,9 +31,8 @@ struct PlanePoseOptions {
 struct PlanePose {
   std::string bundle;
   algo::Plane plane;
-  cv::Mat phase;           // main, CV_32F, NaN where the pixel is not used
-  cv::Mat phase_aux;       // aux, CV_32F (only with keep_aux_phase)
-  cv::Mat stereo_inliers;  // CV_8U: main pixels whose stereo point is on the plane
+  cv::Mat phase;      // main, CV_32F, NaN where the pixel is not used
+  cv::Mat phase_aux;  // aux, CV_32F (only with keep_aux_phase)
   std::size_t stereo_points = 0;
   std::size_t plane_inliers = 0;
   double plane_rmse_mm = 0;
@@ -70,4 +70,4 @@ class PlanePoseMeasurer {
   PlanePoseOptions options_;
 };
 
-}  // namespace cylscan::tools
+}  // namespace cylscan::firmware

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
-// Shared by the subcommands: the phase engine run over one camera of a capture
-// bundle, frames streamed from disk one at a time (none is kept).
+// The phase engine run over one camera of a capture bundle, frames streamed
+// from disk one at a time (none is kept): the calibration solve's plane poses
+// and the command line's bundles.
 #pragma once
 
 #include <optional>
@@ -13,7 +14,7 @@
 #include "firmware/reconstruction.hpp"
 #include "formats/capture_bundle.hpp"
 
-namespace cylscan::tools {
+namespace cylscan::firmware {
 
 struct BundlePhaseOptions {
   int bit_depth = 0;           // 16-bit frames: 0 = capture.json bit_depth, else 16
@@ -44,10 +45,6 @@ struct BundleSetPhase {
   double finalize_ms = 0;
 };
 
-// The map of the absolute phase a command works on (PhaseSource, shared with
-// the daemon): Φ of the high set, or the fused one.
-using firmware::absolutePhase;
-
 // Runs the engine over all frames of `camera`, with the camera's own sets
 // (formats::CaptureInfo::setOf: a ring scan's "camera_sets"). InputError naming capture.json
 // when the camera is missing, lacks a set or the angles are unusable, naming the
@@ -70,4 +67,4 @@ BundleSetPhase computeBundleSetPhase(const formats::CaptureBundleReader& bundle,
 // InputError naming capture.json unless the bundle has `camera`.
 void requireCamera(const formats::CaptureBundleReader& bundle, const std::string& camera);
 
-}  // namespace cylscan::tools
+}  // namespace cylscan::firmware

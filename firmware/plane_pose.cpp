@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-#include "tools/plane_pose.hpp"
+#include "firmware/plane_pose.hpp"
 
 #include <cstdint>
 #include <limits>
@@ -7,10 +7,10 @@
 #include <vector>
 
 #include "algo/surface_fit.hpp"
+#include "firmware/stopwatch.hpp"
 #include "formats/input_error.hpp"
-#include "tools/stopwatch.hpp"
 
-namespace cylscan::tools {
+namespace cylscan::firmware {
 namespace {
 
 constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
@@ -33,17 +33,15 @@ cv::Mat inlierMask(cv::Size size, const algo::PhaseStereoResult& stereo,
   return mask;
 }
 
-// The main phase where the pixel is used for this pose, NaN elsewhere: a
+// Sets the main phase to NaN where the pixel is not used for this pose: a
 // pixel with a stereo point must be an inlier; one without needs
 // !stereo_pixels_only.
-cv::Mat maskedPhase(const cv::Mat& phase, const algo::PhaseStereoResult& stereo,
-                    const cv::Mat& inliers, bool stereo_pixels_only) {
+void maskPhase(cv::Mat& phase, const algo::PhaseStereoResult& stereo, const cv::Mat& inliers,
+               bool stereo_pixels_only) {
   cv::Mat use(phase.size(), CV_8U, cv::Scalar(stereo_pixels_only ? 0 : 1));
   for (const auto& pixel : stereo.pixels)
     use.at<std::uint8_t>(pixel) = inliers.at<std::uint8_t>(pixel);
-  cv::Mat out = phase.clone();
-  out.setTo(kNaNf, use == 0);
-  return out;
+  phase.setTo(kNaNf, use == 0);
 }
 
 }  // namespace
@@ -58,17 +56,30 @@ PlanePoseMeasurer::PlanePoseMeasurer(const algo::StereoGeometry& stereo, PlanePo
 PlanePose PlanePoseMeasurer::measure(const formats::CaptureBundleReader& bundle,
                                      std::optional<double> order_reference) const {
   Stopwatch watch;
-  BundlePhaseOptions phase_options;
-  phase_options.order_reference_rad = order_reference;
-  const BundlePhase main = computeBundlePhase(bundle, "main", phase_options);
-  if (main.maps.order_residual.samples > 0)
-    phase_options.order_reference_rad = main.maps.order_residual.centre_rad;
-  const BundlePhase aux = computeBundlePhase(bundle, "aux", phase_options);
-  const cv::Mat& phase = absolutePhase(main.maps, options_.phase);
-  const cv::Mat& phase_aux = absolutePhase(aux.maps, options_.phase);
-  const algo::PhaseStereoResult points = stereo_.reconstruct(phase, phase_aux);
   PlanePose pose;
   pose.bundle = bundle.dir().string();
+  BundlePhaseOptions phase_options;
+  phase_options.order_reference_rad = order_reference;
+  // Each camera's maps other than the phase used are let go as soon as read:
+  // the phase maps of a camera are 31 bytes a pixel, the phase 4.
+  cv::Mat phase;
+  {
+    const BundlePhase main = computeBundlePhase(bundle, "main", phase_options);
+    phase = absolutePhase(main.maps, options_.phase);
+    pose.main_valid_fraction = main.maps.valid_fraction;
+    pose.order_residual = main.maps.order_residual;
+  }
+  if (pose.order_residual.samples > 0)
+    phase_options.order_reference_rad = pose.order_residual.centre_rad;
+  cv::Mat phase_aux;
+  {
+    const BundlePhase aux = computeBundlePhase(bundle, "aux", phase_options);
+    phase_aux = absolutePhase(aux.maps, options_.phase);
+    pose.aux_valid_fraction = aux.maps.valid_fraction;
+  }
+  const algo::PhaseStereoResult points = stereo_.reconstruct(phase, phase_aux);
+  if (options_.keep_aux_phase) pose.phase_aux = phase_aux;
+  phase_aux.release();
   pose.stereo_points = points.points.size();
   if (pose.stereo_points < kMinStereoPoints) {
     throw formats::InputError(bundle.dir(), "only " + std::to_string(pose.stereo_points) +
@@ -81,14 +92,11 @@ PlanePose PlanePoseMeasurer::measure(const formats::CaptureBundleReader& bundle,
   pose.plane = plane.fit.plane;
   pose.plane_inliers = plane.inlier_count;
   pose.plane_rmse_mm = plane.fit.rmse;
-  pose.stereo_inliers = inlierMask(phase.size(), points, plane);
-  pose.phase = maskedPhase(phase, points, pose.stereo_inliers, options_.stereo_pixels_only);
-  if (options_.keep_aux_phase) pose.phase_aux = phase_aux.clone();
-  pose.main_valid_fraction = main.maps.valid_fraction;
-  pose.aux_valid_fraction = aux.maps.valid_fraction;
-  pose.order_residual = main.maps.order_residual;
+  // `phase` is this pose's own map now (its camera's maps are gone): masked in place.
+  maskPhase(phase, points, inlierMask(phase.size(), points, plane), options_.stereo_pixels_only);
+  pose.phase = std::move(phase);
   pose.ms = watch.elapsedMs();
   return pose;
 }
 
-}  // namespace cylscan::tools
+}  // namespace cylscan::firmware
