@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -103,6 +104,9 @@ PixelGeometry tracePixels(const Scene& scene, const CameraModel& camera,
         const auto i = static_cast<std::size_t>(v) * g.width + u;
         const Lighting centre = light(scene, projector, {origin, rays[i]});
         double ambient = centre.ambient, direct = centre.direct;
+        // A pixel on an object's outline whose centre misses it: the
+        // projector ray of a part that hits, since its light is in the pixel.
+        std::optional<Vec3> edge_hit;
         if (s > 1) {
           ambient = direct = 0;
           for (int sy = 0; sy < s; ++sy) {
@@ -112,6 +116,7 @@ PixelGeometry tracePixels(const Scene& scene, const CameraModel& camera,
                   scene, projector, {origin, subpixelRay(rays, g.width, g.height, u + du, v + dv)});
               ambient += l.ambient;
               direct += l.direct;
+              if (!edge_hit && l.hit && l.direct > 0) edge_hit = l.point;
             }
           }
           ambient /= s * s;
@@ -124,6 +129,10 @@ PixelGeometry tracePixels(const Scene& scene, const CameraModel& camera,
           f |= PixelGeometry::kHit;
           g.points.at<cv::Vec3d>(v, u) = {centre.point.x(), centre.point.y(), centre.point.z()};
           g.rays[i] = projector.rayGeometry(centre.point);
+        } else if (edge_hit) {
+          g.rays[i] = projector.rayGeometry(*edge_hit);
+        } else {
+          g.direct[i] = 0.0f;  // no ray to light it by
         }
         if (centre.lit) f |= PixelGeometry::kLit;
         if (centre.shadow) f |= PixelGeometry::kShadow;
