@@ -11,6 +11,10 @@
 #                                   # at 320x256): every camera calibrated one
 #                                   # direction at a time, the extrinsics on a
 #                                   # turntable, the merged cloud in the page
+#   bash scripts/demo.sh --on-head  # the head calibrates itself through the
+#                                   # daemon's API (calibration session: 40
+#                                   # board pairs, 14 plane poses, the solve,
+#                                   # the install), then checks the sphere
 #
 # The calibration (simulate, calibrate-stereo, calibrate: a few minutes at the
 # head's full 1000x800) is kept in out/demo (out/demo360) and reused by later runs.
@@ -18,14 +22,22 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 once=0
 ring=0
+on_head=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --once) once=1; shift ;;
     --360) ring=1; shift ;;
+    --on-head) on_head=1; shift ;;
     *) break ;;
   esac
 done
-if [ "$ring" -eq 1 ]; then out=${1:-out/demo360}; else out=${1:-out/demo}; fi
+if [ "$ring" -eq 1 ]; then
+  out=${1:-out/demo360}
+elif [ "$on_head" -eq 1 ]; then
+  out=${1:-out/demo-on-head}
+else
+  out=${1:-out/demo}
+fi
 listen=${CYLSCAN_LISTEN:-127.0.0.1:8080}
 
 bash scripts/install-deps.sh
@@ -52,7 +64,7 @@ if [ "$ring" -eq 1 ]; then
     $cylscan calibrate-head --calib-dir "$out/calib" --out "$out/head.json" "$out"/turntable/turn*
   fi
   board="$out/board"
-elif [ ! -f "$out/calib.bin" ]; then
+elif [ "$on_head" -eq 0 ] && [ ! -f "$out/calib.bin" ]; then
   echo "== simulate: the virtual head renders its calibration data (docs/formats.md, simulated dataset)"
   rm -rf "$data"
   $cylscan simulate --out "$data" --boards 40
@@ -89,6 +101,44 @@ if [ "$ring" -eq 1 ]; then
   echo "== install the extrinsics: PUT $url/api/v1/head"
   curl -sS --fail-with-body -X PUT --data-binary @"$out/head.json" \
     -H 'Content-Type: application/json' "$url/api/v1/head" >/dev/null
+elif [ "$on_head" -eq 1 ]; then
+  # POST BODY PATH: the answer, or the error and exit.
+  post() { curl -sS --fail-with-body -X POST -H 'Content-Type: application/json' -d "$1" "$url$2"; }
+  waitIdle() {
+    until curl -sS "$url/api/v1/status" | grep -q '"state":"idle"'; do sleep 0.2; done
+  }
+  started=$SECONDS
+  echo "== the head calibrates itself: POST $url/api/v1/calibration/session"
+  post '{}' /api/v1/calibration/session >/dev/null
+  for i in $(seq 0 39); do
+    scene=$(printf 'calibration/board%02d.toml' "$i")
+    answer=$(post "{\"scene\": \"$scene\"}" /api/v1/calibration/session/boards)
+    echo "   board pair $i ($scene): $answer"
+  done
+  curl -sS "$url/api/v1/calibration/session" | sed -n 's/.*"advice":"\([^"]*\)".*/   guidance: \1/p'
+  for i in $(seq 0 13); do
+    scene=$(printf 'calibration/plane%02d.toml' "$i")
+    post "{\"scene\": \"$scene\"}" /api/v1/calibration/session/planes >/dev/null
+    waitIdle
+    echo "   plane pose $i ($scene) taken"
+  done
+  echo "== the solve, on the head (stereo calibration, then quasi-calibration)"
+  solve_start=$SECONDS
+  post '{}' /api/v1/calibration/session/solve >/dev/null
+  while curl -sS "$url/api/v1/calibration/session" | grep -q '"state":"solving"'; do sleep 1; done
+  session=$(curl -sS "$url/api/v1/calibration/session")
+  case "$session" in *'"state":"solved"'*) ;; *) echo "$session" >&2; exit 1 ;; esac
+  echo "   solved in $((SECONDS - solve_start)) s; peak memory of the daemon:" \
+    "$(sed -n 's/^VmHWM:[[:space:]]*//p' "/proc/$daemon_pid/status")"
+  echo "$session" | grep -o '"stereo_rms_px":[^,]*\|"pooled_rmse_mm":[^,]*' | sed 's/^/   /'
+  echo "== install: POST $url/api/v1/calibration/session/install"
+  post '{}' /api/v1/calibration/session/install
+  echo
+  echo "== check the 50 mm sphere: POST $url/api/v1/checks"
+  check=$(post '{"artifact": "sphere", "radius_mm": 50}' /api/v1/checks | sed -n 's/.*"id":"\([^"]*\)".*/\1/p')
+  waitIdle
+  curl -sS "$url/api/v1/checks" | grep -o "{[^{}]*\"id\":\"$check\"[^{}]*}"
+  echo "   the head calibrated itself in $((SECONDS - started)) s"
 else
   echo "== install the calibration: PUT $url/api/v1/calibration"
   curl -sS --fail-with-body -X PUT --data-binary @"$out/calib.bin" \

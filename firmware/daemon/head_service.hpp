@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <future>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -161,6 +162,35 @@ class HeadService {
   // picture). ServiceError 404 no such camera, 409 a scan runs, 503 the
   // service is stopping.
   virtual std::unique_ptr<LiveStream> openLiveView(const LiveViewRequest& request) = 0;
+
+  // POST /api/v1/checks: `request` is {"artifact": "sphere", "radius_mm": R,
+  // "scene"?, "tolerance_mm"?}. Scans the artifact like any scan and
+  // measures it; returns the check's id (the scan's). ServiceError 400 (the
+  // key named), 409 a scan runs or main has no calibration, 503, 507.
+  virtual std::string startCheck(const nlohmann::json& request) = 0;
+  // GET /api/v1/checks: the running check, then the history, newest first.
+  virtual nlohmann::json listChecks() const = 0;
+
+  // The calibration session (docs/http-api.md, calibration session). Each
+  // throws ServiceError: 404 no session, 409 the head or the session is
+  // busy, 400 a bad body (naming the key), 503 stopping.
+  // POST /api/v1/calibration/session: body null or {"board"?}; the session.
+  virtual nlohmann::json startSession(const nlohmann::json& body) = 0;
+  // GET /api/v1/calibration/session; nullopt when there is none.
+  virtual std::optional<nlohmann::json> session() const = 0;
+  // POST …/session/boards: queues one checkerboard pair; the future gives
+  // {"index", "found"} once it is taken, or throws the ServiceError.
+  virtual std::future<nlohmann::json> captureBoard(const nlohmann::json& body) = 0;
+  // POST …/session/planes: queues one plane pose; {"index"}.
+  virtual nlohmann::json capturePlane(const nlohmann::json& body) = 0;
+  // POST …/session/solve: starts the solve in the background.
+  virtual void solveSession() = 0;
+  // POST …/session/install: the installed calibration's info; the one it
+  // replaces is kept.
+  virtual nlohmann::json installSession() = 0;
+  // POST /api/v1/calibration/rollback: the kept calibration installed again
+  // (and the one it replaces kept in its place); 404 none kept.
+  virtual nlohmann::json rollbackCalibration() = 0;
 
   // GET /api/v1/events.
   virtual std::unique_ptr<EventStream> subscribe() = 0;

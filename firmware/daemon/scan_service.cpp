@@ -10,6 +10,7 @@
 
 #include "firmware/bundle_sink.hpp"
 #include "firmware/daemon/log.hpp"
+#include "firmware/daemon/scan_service_jobs.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/reconstruction.hpp"
 #include "firmware/scan_output.hpp"
@@ -29,15 +30,6 @@ using Clock = std::chrono::steady_clock;
 constexpr std::uint64_t kOutputBytesPerPixel = 36;
 constexpr std::string_view kBundleDir = "bundle";  // a scan's raw frames, when kept
 
-std::string isoTime(std::chrono::system_clock::time_point t) {
-  const std::time_t secs = std::chrono::system_clock::to_time_t(t);
-  std::tm tm{};
-  gmtime_r(&secs, &tm);
-  std::array<char, 32> buf{};
-  std::strftime(buf.data(), buf.size(), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf.data();
-}
-
 double secondsSince(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
@@ -46,21 +38,25 @@ double secondsSince(Clock::time_point t0) {
   throw ServiceError(400, key + ": " + fault);
 }
 
+// A scene as the API names it: a file in the board's scenes/ folder or in
+// one folder below it (calibration/board07.toml); no segment starts with a
+// dot, so nothing outside scenes/ can be named.
 bool isSceneName(const std::string& name) {
-  if (name.empty() || name.size() > 128 || name.front() == '.') return false;
-  return std::all_of(name.begin(), name.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
-           c == '_' || c == '-';
-  });
-}
-
-// GET /api/v1/calibration's answer for an installed calibration.
-json calibrationInfoJson(const algo::QuasiCalibration& calib, std::uintmax_t bytes) {
-  return {{"installed", true},
-          {"bytes", bytes},
-          {"width", calib.size().width},
-          {"height", calib.size().height},
-          {"phase_source", toString(calib.info().phase_source)}};
+  if (name.empty() || name.size() > 128) return false;
+  std::size_t segments = 0;
+  for (std::size_t begin = 0; begin <= name.size();) {
+    const std::size_t end = std::min(name.find('/', begin), name.size());
+    if (end == begin || name[begin] == '.' || ++segments > 2) return false;
+    const bool plain = std::all_of(name.begin() + static_cast<std::ptrdiff_t>(begin),
+                                   name.begin() + static_cast<std::ptrdiff_t>(end), [](char c) {
+                                     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                                            (c >= '0' && c <= '9') || c == '.' || c == '_' ||
+                                            c == '-';
+                                   });
+    if (!plain) return false;
+    begin = end + 1;
+  }
+  return true;
 }
 
 const std::vector<double>& durationBoundsSeconds() {
@@ -70,21 +66,22 @@ const std::vector<double>& durationBoundsSeconds() {
 
 }  // namespace
 
-struct ScanService::Request {
-  json given = json::object();
-  ScanOptions scan;
-  bool save_bundle = false;
-  std::optional<PhaseSource> phase_asked;  // given in the POST
-  PhaseSource phase_default = PhaseSource::Fused;
-  std::optional<fs::path> scene;
-  int frames_total = 0;
-};
+std::string isoTime(std::chrono::system_clock::time_point t) {
+  const std::time_t secs = std::chrono::system_clock::to_time_t(t);
+  std::tm tm{};
+  gmtime_r(&secs, &tm);
+  std::array<char, 32> buf{};
+  std::strftime(buf.data(), buf.size(), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf.data();
+}
 
-struct ScanService::Job {
-  Request request;
-  ScanRecord record;  // mutex_ (the worker alone changes it)
-  Clock::time_point started = Clock::now();
-};
+json calibrationInfoJson(const algo::QuasiCalibration& calib, std::uintmax_t bytes) {
+  return {{"installed", true},
+          {"bytes", bytes},
+          {"width", calib.size().width},
+          {"height", calib.size().height},
+          {"phase_source", toString(calib.info().phase_source)}};
+}
 
 ScanServiceOptions scanServiceOptions(const DaemonConfig& config, std::string version) {
   ScanServiceOptions o;
@@ -100,6 +97,7 @@ ScanServiceOptions scanServiceOptions(const DaemonConfig& config, std::string ve
 ScanService::ScanService(ScanServiceOptions options)
     : options_(std::move(options)),
       store_(options_.data_dir),
+      checks_(options_.data_dir),
       scan_duration_(durationBoundsSeconds()) {
   board_ = std::make_unique<drivers::Board>(drivers::Board::open(options_.board));
   profile_ = board_->profile();
@@ -112,6 +110,7 @@ ScanService::ScanService(ScanServiceOptions options)
   scans_total_.inc("failed", 0);
   loadCalibrationInfo();
   loadHeadInfo();
+  loadSession();
   worker_ = std::thread([this] { worker(); });
 }
 
@@ -137,6 +136,8 @@ void ScanService::stop() {
     if (cv_.wait_for(lock, std::chrono::milliseconds(20), [&] { return worker_done_; })) break;
   }
   if (worker_.joinable()) worker_.join();
+  // A solve checks stopping_ at each step of its progress and ends.
+  if (solve_thread_.joinable()) solve_thread_.join();
   events_.close();
 }
 
@@ -218,7 +219,7 @@ ScanService::Request ScanService::validate(const json& options) const {
     const json& v = r.given["scene"];
     if (!profile_.sim) badOption("scene", "the board '" + board_name_ + "' is not a virtual head");
     if (!v.is_string() || !isSceneName(v.get<std::string>()))
-      badOption("scene", "must be a file name in the board's scenes/ folder");
+      badOption("scene", "must name a file in the board's scenes/ folder or one folder below it");
     const fs::path file = scenes_dir_ / v.get<std::string>();
     std::error_code ec;
     if (!fs::is_regular_file(file, ec))
@@ -287,7 +288,11 @@ std::string ScanService::newScanId(std::chrono::system_clock::time_point now) {
 
 json ScanService::stateJson() const {
   const std::string state = job_ ? "scanning" : last_error_ ? "error" : "idle";
-  return {{"state", state}, {"scan", job_ ? json(job_->record.id) : json(nullptr)}};
+  json out = {{"state", state},
+              {"scan", job_ && !job_->request.capture ? json(job_->record.id) : json(nullptr)}};
+  if (job_ && job_->request.capture)
+    out["capture"] = job_->request.capture->board_reply ? "calibration board" : "calibration plane";
+  return out;
 }
 
 void ScanService::publishState() {
@@ -321,6 +326,7 @@ void ScanService::refuseUnlessIdleLocked() const {
 }
 
 std::string ScanService::busyMessageLocked() const {
+  if (job_->request.capture) return "a calibration capture is " + toString(job_->record.state);
   return "scan " + job_->record.id + " is " + toString(job_->record.state);
 }
 
@@ -346,8 +352,14 @@ std::string ScanService::queueLocked(Request request) {
   record.options = job->request.given;
   record.frames = job->request.frames_total;
   record.calibrated = calibration_info_.count("main") > 0;
+  if (job->request.check) {
+    job->check = job->request.check;
+    job->check->id = record.id;
+    job->check->created = record.created;
+  }
   job_ = std::move(job);
   events_.publish("scan", job_->record);
+  if (job_->check) events_.publish("check", *job_->check);
   publishState();
   logInfo("scan " + job_->record.id + " queued: " + job_->request.given.dump());
   cv_.notify_all();
@@ -372,7 +384,11 @@ void ScanService::worker() {
         job = job_.get();
         job->record.state = ScanState::kRunning;
         job->started = Clock::now();
-        events_.publish("scan", job->record);
+        if (!job->request.capture) events_.publish("scan", job->record);
+        if (job->check) {
+          job->check->state = "running";
+          events_.publish("check", *job->check);
+        }
       } else if (stopping_) {
         break;  // nothing queued
       }
@@ -385,7 +401,11 @@ void ScanService::worker() {
       }
     } else if (job != nullptr) {
       live_.end(409, "a scan started");
-      runJob(*job);  // ends with finishLocked()
+      if (job->request.capture) {
+        runSessionCapture(*job);
+      } else {
+        runJob(*job);  // ends with finishLocked()
+      }
     } else {
       serveLiveView();
     }
@@ -454,9 +474,12 @@ void ScanService::runJob(Job& job) {
     done = doneRecord(job, std::move(output), report);
     store_.commit(*done);
   } catch (...) {
-    finishFailed(job, failureOf(std::current_exception()));
+    const std::string error = failureOf(std::current_exception());
+    if (job.check) failCheck(job, error);
+    finishFailed(job, error);
     return;
   }
+  if (job.check) finishCheck(job, *done);
   finishDone(*done, report);
 }
 
@@ -489,6 +512,16 @@ ScanOutputOptions ScanService::outputOptions(const Request& request,
 }
 
 // The scan on the board: the phase folded and, when asked, the bundle kept.
+json ScanService::bundleExtra(const Request& request) const {
+  const auto& main = board_->profile().camera("main").config;
+  json extra = {{"device", "cylscand " + board_name_},
+                {"board", board_name_},
+                {"mode", toString(request.scan.mode)},
+                {"exposure_us", board_->camera("main").controls().exposure_us.value}};
+  if (main.bit_depth > 8) extra["bit_depth"] = main.bit_depth;
+  return extra;
+}
+
 ScanReport ScanService::acquire(Job& job, const ScanPlan& plan, PhaseSink& phase,
                                 const fs::path& partial) {
   const Request& request = job.request;
@@ -496,13 +529,8 @@ ScanReport ScanService::acquire(Job& job, const ScanPlan& plan, PhaseSink& phase
   sinks.add(phase);
   std::unique_ptr<BundleSink> bundle;
   if (request.save_bundle) {
-    const auto& main = board_->profile().camera("main").config;
-    json extra = {{"device", "cylscand " + board_name_},
-                  {"board", board_name_},
-                  {"mode", toString(request.scan.mode)},
-                  {"exposure_us", board_->camera("main").controls().exposure_us.value}};
-    if (main.bit_depth > 8) extra["bit_depth"] = main.bit_depth;
-    bundle = std::make_unique<BundleSink>(partial / kBundleDir, plan, request.scan.cameras, extra);
+    bundle = std::make_unique<BundleSink>(partial / kBundleDir, plan, request.scan.cameras,
+                                          bundleExtra(request));
     sinks.add(*bundle);
   }
   logInfo("scan " + job.record.id + " running: " + std::to_string(plan.frames()) + " frames, " +

@@ -14,6 +14,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <exception>
+#include <future>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -23,7 +24,9 @@
 
 #include "drivers/board.hpp"
 #include "firmware/acquisition.hpp"
+#include "firmware/daemon/calibration_session.hpp"
 #include "firmware/daemon/camera_settings.hpp"
+#include "firmware/daemon/check_store.hpp"
 #include "firmware/daemon/daemon_config.hpp"
 #include "firmware/daemon/event_hub.hpp"
 #include "firmware/daemon/head_service.hpp"
@@ -96,6 +99,15 @@ class ScanService final : public HeadService {
   nlohmann::json setCameraControls(std::string_view camera,
                                    const nlohmann::json& controls) override;
   std::unique_ptr<LiveStream> openLiveView(const LiveViewRequest& request) override;
+  std::string startCheck(const nlohmann::json& request) override;
+  nlohmann::json listChecks() const override;
+  nlohmann::json startSession(const nlohmann::json& body) override;
+  std::optional<nlohmann::json> session() const override;
+  std::future<nlohmann::json> captureBoard(const nlohmann::json& body) override;
+  nlohmann::json capturePlane(const nlohmann::json& body) override;
+  void solveSession() override;
+  nlohmann::json installSession() override;
+  nlohmann::json rollbackCalibration() override;
 
  private:
   struct Request;  // a validated POST
@@ -125,12 +137,33 @@ class ScanService final : public HeadService {
   void serveLiveView();
   nlohmann::json cameraJsonLocked(const drivers::CameraProfile& camera) const;
 
+  // Checks (firmware/daemon/scan_service_checks.cpp): the artifact measured
+  // on the scan just committed, or the check failed with its scan.
+  void finishCheck(Job& job, const ScanRecord& done);
+  void failCheck(Job& job, const std::string& error);
+  // Adds a finished check to the history, the job and the event stream.
+  void keepCheck(Job& job, const CheckRecord& check);
+
+  // The calibration session (firmware/daemon/scan_service_session.cpp).
+  void loadSession();
+  void requireTwoCameras() const;
+  // The virtual head's target poses (scenes/calibration/boardNN, planeNN).
+  nlohmann::json calibrationTargets() const;
+  // The session that may take captures (mutex_ held): 404 none, 409 solving.
+  std::shared_ptr<CalibrationSession> capturingSessionLocked() const;
+  Request captureRequest(const nlohmann::json& body) const;
+  void queueCaptureLocked(Request request);
+  void runSessionCapture(Job& job);                                   // on the worker
+  void runSolve(const std::shared_ptr<CalibrationSession>& session);  // on solve_thread_
+
   // One scan, on the worker: the steps of runJob.
   void runJob(Job& job);
   ScanCalibrations loadCalibrations(const Request& request) const;
   algo::PhaseOptions phaseOptions() const;
   ScanOutputOptions outputOptions(const Request& request,
                                   const ScanCalibrations& calibrations) const;
+  // capture.json's extra fields of a bundle the worker writes (on the worker).
+  nlohmann::json bundleExtra(const Request& request) const;
   ScanReport acquire(Job& job, const ScanPlan& plan, PhaseSink& phase,
                      const std::filesystem::path& partial);
   void onProgress(Job& job, const ScanProgress& progress);
@@ -156,6 +189,7 @@ class ScanService final : public HeadService {
   std::string board_name_;
   std::filesystem::path scenes_dir_;
   ScanStore store_;
+  CheckStore checks_;
   EventHub events_;
   const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
 
@@ -183,6 +217,8 @@ class ScanService final : public HeadService {
   std::map<std::string, drivers::CameraControls, std::less<>> camera_controls_;  // as applied
   std::mutex settings_file_mutex_;  // one writer of cameras.json at a time
   LiveHub live_;
+  std::shared_ptr<CalibrationSession> session_;  // mutex_ (the pointer; the session locks itself)
+  std::thread solve_thread_;                     // the last solve's; joined by the next and stop()
   std::chrono::steady_clock::time_point last_live_capture_{};  // the worker's
 
   Counter frames_total_;

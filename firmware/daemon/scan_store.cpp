@@ -7,6 +7,10 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <string>
 #include <system_error>
 
 #include "common/vocabulary.hpp"
@@ -282,8 +286,45 @@ fs::path ScanStore::calibrationPath(std::string_view camera) const {
   return calibrations().calibrationFile(camera);
 }
 
+namespace {
+
+fs::path previousOf(const fs::path& file) {
+  fs::path previous = file;
+  previous += ".previous";
+  return previous;
+}
+
+std::optional<std::string> readWhole(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (!in.good() && !in.eof())
+    throw std::system_error(errno, std::generic_category(), "cannot read " + file.string());
+  return bytes.str();
+}
+
+}  // namespace
+
 void ScanStore::installCalibration(std::string_view camera, std::span<const std::byte> bytes) {
-  formats::writeFileAtomically(calibrationPath(camera), bytes);
+  const fs::path file = calibrationPath(camera);
+  if (const auto installed = readWhole(file))
+    formats::writeFileAtomically(previousOf(file), std::string_view(*installed));
+  formats::writeFileAtomically(file, bytes);
+}
+
+bool ScanStore::rollbackCalibration(std::string_view camera) {
+  const fs::path file = calibrationPath(camera);
+  const auto previous = readWhole(previousOf(file));
+  if (!previous) return false;
+  const auto installed = readWhole(file);
+  formats::writeFileAtomically(file, std::string_view(*previous));
+  if (installed) {
+    formats::writeFileAtomically(previousOf(file), std::string_view(*installed));
+  } else {
+    fs::remove(previousOf(file));
+  }
+  return true;
 }
 
 void ScanStore::installHead(std::string_view text) {

@@ -72,8 +72,11 @@ class ScanStore {
   // calibration/<camera>.qcal, whether or not it exists.
   std::filesystem::path calibrationPath(std::string_view camera) const;
   // Written atomically (temp, fsync, rename, fsync dir): the old one stays
-  // whole until the new one is.
+  // whole until the new one is, and is then kept as <camera>.qcal.previous.
   void installCalibration(std::string_view camera, std::span<const std::byte> bytes);
+  // Swaps the installed calibration and the kept one (each written
+  // atomically), so a second rollback undoes the first; false when none is kept.
+  bool rollbackCalibration(std::string_view camera);
   // calibration/head.json (the head's extrinsics), written the same way.
   std::filesystem::path headPath() const { return calibrations().headFile(); }
   void installHead(std::string_view text);

@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <cstring>
 #include <functional>
+#include <future>
 #include <iostream>
 #include <map>
 #include <mutex>
@@ -49,6 +50,9 @@ constexpr std::size_t kLiveBlockSize = 64u << 10;
 constexpr std::string_view kLiveBoundary = "cylscanframe";
 // How long a snapshot waits for its picture before it is refused.
 constexpr std::chrono::seconds kSnapshotTimeout{10};
+// How long a checkerboard pair may take (a scan plan's frames in both
+// cameras) before the request is answered 503; the capture itself goes on.
+constexpr std::chrono::seconds kCaptureTimeout{300};
 // A request refused before its body was read: the client may still be
 // sending it, and a browser reads the answer only once it has sent it all.
 // Closing at once would reset the connection and lose the answer, so the
@@ -103,11 +107,11 @@ struct Request {
   bool answered = false;   // a response is queued
   bool streaming = false;  // an event stream: counted when it starts
   int status = 0;
-  std::shared_ptr<struct PendingSnapshot> snapshot;  // a snapshot waiting for its picture
-  bool counted_snapshot = false;                     // in snapshots_in_flight
-  bool in_begin = false;  // answering in the first call: the body is unread
-  bool linger = false;    // answered before a body that is still coming
-  int fd = -1;            // the connection's socket
+  std::shared_ptr<struct PendingReply> pending;  // suspended until its reply is ready
+  bool counted_pending = false;                  // in pending_in_flight
+  bool in_begin = false;                         // answering in the first call: the body is unread
+  bool linger = false;                           // answered before a body that is still coming
+  int fd = -1;                                   // the connection's socket
 };
 
 // The socket of a connection answered before its body was read, kept open
@@ -118,13 +122,30 @@ struct Lingering {
   std::size_t drained = 0;
 };
 
+// A request's JSON body: `empty` when there is none (only white space);
+// ServiceError 400 when it is not JSON, or not an object.
+json bodyObject(const std::string& body, json empty) {
+  if (body.find_first_not_of(" \t\r\n") == std::string::npos) return empty;
+  json parsed;
+  try {
+    parsed = json::parse(body);
+  } catch (const json::exception& e) {  // parse_error, or out_of_range for 1e400
+    throw ServiceError(400, std::string("the body is not valid JSON: ") + e.what());
+  }
+  if (!parsed.is_object()) throw ServiceError(400, "the body must be a JSON object");
+  return parsed;
+}
+
 struct SseClient;
 
-// A snapshot's request, suspended until the live view has its picture (or
-// ends, or the wait times out); the pump then sets the reply and resumes it.
-struct PendingSnapshot {
+// A request suspended until its answer is ready, or the wait times out; the
+// pump then sets the reply and resumes it. A snapshot waits for the live
+// view's picture (or its end); a checkerboard pair for the head's capture.
+struct PendingReply {
   MHD_Connection* connection = nullptr;
-  std::unique_ptr<LiveStream> live;
+  std::unique_ptr<LiveStream> live;  // a snapshot
+  std::future<json> answer;          // a capture: its JSON, or its ServiceError
+  int answer_status = 201;
   Clock::time_point deadline;
   std::string camera;
   std::mutex mutex;
@@ -149,9 +170,9 @@ struct ApiServer {
   std::mutex sse_mutex;
   std::condition_variable sse_cv;
   std::map<SseClient*, std::shared_ptr<SseClient>> sse_clients;
-  std::vector<std::shared_ptr<PendingSnapshot>> snapshots;  // suspended requests
-  std::size_t snapshots_in_flight = 0;  // suspended or resumed, not yet completed
-  std::vector<Lingering> lingering;     // the pump's
+  std::vector<std::shared_ptr<PendingReply>> pending_replies;  // suspended requests
+  std::size_t pending_in_flight = 0;  // suspended or resumed, not yet completed
+  std::vector<Lingering> lingering;   // the pump's
   bool stopping = false;
   std::thread pump;
 
@@ -175,7 +196,9 @@ struct ApiServer {
                          const char* content_type, std::size_t block_size,
                          const std::function<void(SseClient&)>& open);
   MHD_Result startSnapshot(MHD_Connection* c, Request& r);
-  void serveSnapshots();
+  MHD_Result startBoardCapture(MHD_Connection* c, Request& r);
+  MHD_Result suspend(MHD_Connection* c, Request& r, std::shared_ptr<PendingReply> pending);
+  void servePending();
   void serveLive(SseClient& client, Clock::time_point now);
   void drainLingering(Clock::time_point now);
   void completed(const Request& r);
@@ -415,7 +438,7 @@ void ApiServer::stop() {
   }
   sse_cv.notify_all();
   if (pump.joinable()) pump.join();
-  serveSnapshots();  // every one is answered 503 now that stopping is set
+  servePending();  // every one is answered 503 now that stopping is set
   // End every stream: a suspended one is resumed and its reader answers the
   // end (libmicrohttpd must not be stopped with suspended connections).
   for (const auto& client : clients) {
@@ -431,7 +454,7 @@ void ApiServer::stop() {
     // Bounded: a client that reads nothing must not hold the shutdown.
     std::unique_lock lock(sse_mutex);
     sse_cv.wait_for(lock, std::chrono::seconds(2),
-                    [this] { return sse_clients.empty() && snapshots_in_flight == 0; });
+                    [this] { return sse_clients.empty() && pending_in_flight == 0; });
   }
   if (daemon != nullptr) MHD_stop_daemon(daemon);
   daemon = nullptr;
@@ -471,19 +494,20 @@ MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* met
   }
   if (r.answered) return MHD_YES;
   if (r.deferred) return answer(c, r, std::move(*r.deferred));
-  if (r.snapshot) {  // resumed by the pump with its reply
+  if (r.pending) {  // resumed by the pump with its reply
     std::optional<Reply> reply;
     {
-      std::lock_guard lock(r.snapshot->mutex);
-      reply = std::move(r.snapshot->reply);
+      std::lock_guard lock(r.pending->mutex);
+      reply = std::move(r.pending->reply);
     }
-    r.snapshot.reset();
+    r.pending.reset();
     return answer(c, r, reply ? std::move(*reply) : errorReply(503, "no picture was taken"));
   }
   if (r.route.endpoint == http::Endpoint::Events && r.method == "GET") return startEvents(c, r);
   if (r.route.endpoint == http::Endpoint::CameraStream && r.method == "GET")
     return startLiveView(c, r);
   if (r.route.endpoint == http::Endpoint::CameraSnapshot) return startSnapshot(c, r);
+  if (r.route.endpoint == http::Endpoint::CalibrationBoards) return startBoardCapture(c, r);
   return answer(c, r, dispatch(c, r));
 }
 
@@ -662,16 +686,7 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       return jsonReply(200, service.status());
     case Endpoint::Scans: {
       if (get) return jsonReply(200, service.listScans());
-      json scan_options = json::object();
-      if (r.body.find_first_not_of(" \t\r\n") != std::string::npos) {
-        try {
-          scan_options = json::parse(r.body);
-        } catch (const json::exception& e) {  // parse_error, or out_of_range for 1e400
-          return errorReply(400, std::string("the body is not valid JSON: ") + e.what());
-        }
-        if (!scan_options.is_object()) return errorReply(400, "the body must be a JSON object");
-      }
-      const std::string id = service.startScan(scan_options);
+      const std::string id = service.startScan(bodyObject(r.body, json::object()));
       Reply reply = jsonReply(202, json{{"id", id}});
       reply.headers.emplace_back(MHD_HTTP_HEADER_LOCATION, "/api/v1/scans/" + id);
       return reply;
@@ -741,6 +756,35 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       reply.content_type = "text/event-stream";
       return reply;
     }
+    case Endpoint::Checks: {
+      if (get) return jsonReply(200, service.listChecks());
+      // No body is an empty one: the service names the keys it needs.
+      const std::string id = service.startCheck(bodyObject(r.body, json::object()));
+      Reply reply = jsonReply(202, json{{"id", id}});
+      reply.headers.emplace_back(MHD_HTTP_HEADER_LOCATION, "/api/v1/scans/" + id);
+      return reply;
+    }
+    case Endpoint::CalibrationSession: {
+      if (get) {
+        auto session = service.session();
+        if (!session) return errorReply(404, "no calibration session");
+        return jsonReply(200, *session);
+      }
+      Reply reply = jsonReply(201, service.startSession(bodyObject(r.body, nullptr)));
+      reply.headers.emplace_back(MHD_HTTP_HEADER_LOCATION, "/api/v1/calibration/session");
+      return reply;
+    }
+    case Endpoint::CalibrationBoards:  // answered by startBoardCapture
+      return errorReply(500, "internal error: a capture was not suspended");
+    case Endpoint::CalibrationPlanes:
+      return jsonReply(202, service.capturePlane(bodyObject(r.body, json::object())));
+    case Endpoint::CalibrationSolve:
+      service.solveSession();
+      return jsonReply(202, json{{"state", "solving"}});
+    case Endpoint::CalibrationInstall:
+      return jsonReply(200, service.installSession());
+    case Endpoint::CalibrationRollback:
+      return jsonReply(200, service.rollbackCalibration());
     case Endpoint::Cameras:
       return jsonReply(200, service.cameras());
     case Endpoint::Camera: {
@@ -889,7 +933,7 @@ MHD_Result ApiServer::startStream(MHD_Connection* c, Request& r,
 // Opens the live view for one picture and suspends the request; the pump
 // resumes it with the picture or the reason there is none.
 MHD_Result ApiServer::startSnapshot(MHD_Connection* c, Request& r) {
-  auto pending = std::make_shared<PendingSnapshot>();
+  auto pending = std::make_shared<PendingReply>();
   pending->connection = c;
   pending->camera = r.route.name;
   pending->deadline = Clock::now() + kSnapshotTimeout;
@@ -906,30 +950,67 @@ MHD_Result ApiServer::startSnapshot(MHD_Connection* c, Request& r) {
     log("internal error opening a snapshot: " + std::string(e.what()));
     return answer(c, r, errorReply(500, std::string("internal error: ") + e.what()));
   }
+  return suspend(c, r, std::move(pending));
+}
+
+MHD_Result ApiServer::suspend(MHD_Connection* c, Request& r,
+                              std::shared_ptr<PendingReply> pending) {
   {
     std::lock_guard lock(sse_mutex);
     if (stopping) return answer(c, r, errorReply(503, "the server is stopping"));
-    r.snapshot = pending;
-    r.counted_snapshot = true;
-    ++snapshots_in_flight;
+    r.pending = pending;
+    r.counted_pending = true;
+    ++pending_in_flight;
     // Suspended before the pump can see it, so its resume always follows.
     MHD_suspend_connection(c);
-    snapshots.push_back(std::move(pending));
+    pending_replies.push_back(std::move(pending));
   }
   sse_cv.notify_all();
   return MHD_YES;
 }
 
+// Queues one checkerboard pair and suspends the request until the head has
+// taken it (a scan plan's frames: seconds, too long to hold a thread).
+MHD_Result ApiServer::startBoardCapture(MHD_Connection* c, Request& r) {
+  auto pending = std::make_shared<PendingReply>();
+  pending->connection = c;
+  pending->deadline = Clock::now() + kCaptureTimeout;
+  try {
+    pending->answer = service.captureBoard(bodyObject(r.body, json::object()));
+  } catch (const ServiceError& e) {
+    return answer(c, r, errorReply(e.httpStatus(), e.what()));
+  } catch (const std::exception& e) {
+    log("internal error starting a capture: " + std::string(e.what()));
+    return answer(c, r, errorReply(500, std::string("internal error: ") + e.what()));
+  }
+  return suspend(c, r, std::move(pending));
+}
+
 // The pump's part for snapshots: each gets its picture, the live view's end
 // or a timeout as its reply, and is resumed.
-void ApiServer::serveSnapshots() {
-  std::vector<std::shared_ptr<PendingSnapshot>> done;
+void ApiServer::servePending() {
+  std::vector<std::shared_ptr<PendingReply>> done;
   {
     std::lock_guard lock(sse_mutex);
     const auto now = Clock::now();
-    std::erase_if(snapshots, [&](const std::shared_ptr<PendingSnapshot>& p) {
+    std::erase_if(pending_replies, [&](const std::shared_ptr<PendingReply>& p) {
       std::optional<Reply> reply;
-      if (auto frame = p->live->next(std::chrono::milliseconds(0))) {
+      if (p->answer.valid()) {
+        if (p->answer.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+          try {
+            reply = jsonReply(p->answer_status, p->answer.get());
+          } catch (const ServiceError& e) {
+            reply = errorReply(e.httpStatus(), e.what());
+          } catch (const std::exception& e) {
+            reply = errorReply(500, std::string("internal error: ") + e.what());
+          }
+        } else if (stopping) {
+          reply = errorReply(503, "the server is stopping");
+        } else if (now >= p->deadline) {
+          reply = errorReply(503, "the capture took longer than " +
+                                      std::to_string(kCaptureTimeout.count()) + " s");
+        }
+      } else if (auto frame = p->live->next(std::chrono::milliseconds(0))) {
         Reply ok;
         ok.content_type = "image/jpeg";
         ok.body = std::move(frame->jpeg);
@@ -953,7 +1034,7 @@ void ApiServer::serveSnapshots() {
     });
   }
   for (const auto& p : done) {
-    p->live.reset();  // the head stops taking pictures for it
+    if (p->live) p->live.reset();  // the head stops taking pictures for it
     MHD_resume_connection(p->connection);
   }
 }
@@ -974,9 +1055,9 @@ void ApiServer::completed(const Request& r) {
       }
     }
   }
-  if (r.counted_snapshot) {
+  if (r.counted_pending) {
     std::lock_guard lock(sse_mutex);
-    --snapshots_in_flight;
+    --pending_in_flight;
     sse_cv.notify_all();
   }
   if (r.answered && !r.streaming) metrics.record(r.status, Clock::now() - r.start);
@@ -1005,7 +1086,7 @@ void ApiServer::pumpLoop() {
     {
       std::unique_lock lock(sse_mutex);
       sse_cv.wait(lock, [this] {
-        return stopping || !sse_clients.empty() || !snapshots.empty() || !lingering.empty();
+        return stopping || !sse_clients.empty() || !pending_replies.empty() || !lingering.empty();
       });
       if (stopping) return;
       sse_cv.wait_for(lock, kPumpTick, [this] { return stopping; });
@@ -1045,7 +1126,7 @@ void ApiServer::pumpLoop() {
     }
     dropHungUp(clients);
     clients.clear();  // a freed client's stream (its subscription) ends here
-    serveSnapshots();
+    servePending();
     drainLingering(now);
   }
 }

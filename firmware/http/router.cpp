@@ -142,6 +142,9 @@ Route route(std::string_view method, std::string_view path) {
     if (what == "status" && s.size() == 3) {
       return withMethods(Endpoint::Status, method, true, false, false, false);
     }
+    if (what == "checks" && s.size() == 3) {
+      return withMethods(Endpoint::Checks, method, true, true, false, false);
+    }
     if (what == "events" && s.size() == 3) {
       return withMethods(Endpoint::Events, method, true, false, false, false);
     }
@@ -205,9 +208,27 @@ Route route(std::string_view method, std::string_view path) {
       if (s.size() == 3) {
         return withMethods(Endpoint::Calibration, method, true, false, true, false);
       }
+      // "session" and "rollback" are the session's: a camera of that name
+      // cannot be reached here (board profiles name cameras main, aux, …).
+      if (s.size() == 4 && s[3] == "session") {
+        return withMethods(Endpoint::CalibrationSession, method, true, true, false, false);
+      }
+      if (s.size() == 4 && s[3] == "rollback") {
+        return withMethods(Endpoint::CalibrationRollback, method, false, true, false, false);
+      }
       if (s.size() == 4) {
         Route r = withMethods(Endpoint::CalibrationFile, method, true, false, false, false);
         return withCamera(std::move(r), s[3]);
+      }
+      if (s.size() == 5 && s[3] == "session") {
+        if (s[4] == "boards")
+          return withMethods(Endpoint::CalibrationBoards, method, false, true, false, false);
+        if (s[4] == "planes")
+          return withMethods(Endpoint::CalibrationPlanes, method, false, true, false, false);
+        if (s[4] == "solve")
+          return withMethods(Endpoint::CalibrationSolve, method, false, true, false, false);
+        if (s[4] == "install")
+          return withMethods(Endpoint::CalibrationInstall, method, false, true, false, false);
       }
     }
     return notFound(path);

@@ -14,22 +14,29 @@
 namespace cylscan::firmware::http {
 
 enum class Endpoint {
-  None,             // no such path (404) or a refused path (400)
-  Status,           // /api/v1/status
-  Scans,            // /api/v1/scans
-  Scan,             // /api/v1/scans/{id}
-  ScanFile,         // /api/v1/scans/{id}/{name}
-  ScanCameraCloud,  // /api/v1/scans/{id}/clouds/{camera}.ply (name = the camera)
-  Head,             // /api/v1/head
-  Calibration,      // /api/v1/calibration
-  CalibrationFile,  // /api/v1/calibration/{camera}
-  Cameras,          // /api/v1/cameras
-  Camera,           // /api/v1/cameras/{name} (name = the camera)
-  CameraSnapshot,   // /api/v1/cameras/{name}/snapshot.jpg
-  CameraStream,     // /api/v1/cameras/{name}/stream.mjpg
-  Events,           // /api/v1/events
-  Metrics,          // /metrics
-  Static,           // anything else outside /api/: a file under web_root
+  None,                 // no such path (404) or a refused path (400)
+  Status,               // /api/v1/status
+  Scans,                // /api/v1/scans
+  Scan,                 // /api/v1/scans/{id}
+  ScanFile,             // /api/v1/scans/{id}/{name}
+  ScanCameraCloud,      // /api/v1/scans/{id}/clouds/{camera}.ply (name = the camera)
+  Head,                 // /api/v1/head
+  Calibration,          // /api/v1/calibration
+  CalibrationFile,      // /api/v1/calibration/{camera}
+  CalibrationSession,   // /api/v1/calibration/session
+  CalibrationBoards,    // /api/v1/calibration/session/boards
+  CalibrationPlanes,    // /api/v1/calibration/session/planes
+  CalibrationSolve,     // /api/v1/calibration/session/solve
+  CalibrationInstall,   // /api/v1/calibration/session/install
+  CalibrationRollback,  // /api/v1/calibration/rollback
+  Cameras,              // /api/v1/cameras
+  Camera,               // /api/v1/cameras/{name} (name = the camera)
+  CameraSnapshot,       // /api/v1/cameras/{name}/snapshot.jpg
+  CameraStream,         // /api/v1/cameras/{name}/stream.mjpg
+  Checks,               // /api/v1/checks
+  Events,               // /api/v1/events
+  Metrics,              // /metrics
+  Static,               // anything else outside /api/: a file under web_root
 };
 
 struct Route {

@@ -19,6 +19,7 @@
 #include <deque>
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -28,9 +29,11 @@
 #include <vector>
 
 #include <curl/curl.h>
+#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "firmware/daemon/head_service.hpp"
+#include "firmware/http/http_api.hpp"
 
 namespace cylscan::test_support {
 
@@ -125,6 +128,20 @@ class FakeService : public firmware::HeadService {
   json last_options;
   std::string last_camera, last_bytes, last_head;
   json cameras_json = json::array();
+  json checks_json = json::array();
+  json last_check;
+  std::optional<json> session_json;
+  json last_session_body;
+  json board_reply = json{{"index", 0}, {"found", {{"main", true}, {"aux", true}}}};
+  std::optional<firmware::ServiceError> session_error;
+  bool hold_board = false;  // the board capture's answer waits for board_promise
+  std::shared_ptr<std::promise<json>> board_promise;
+  int board_captures = 0;
+  // The promise of the n-th board capture (from 1), once it was asked for.
+  std::shared_ptr<std::promise<json>> heldBoard(int n) {
+    std::lock_guard lock(mutex);
+    return board_captures >= n ? board_promise : nullptr;
+  }
   json last_controls;
   std::optional<firmware::ServiceError> camera_error;
   std::vector<firmware::LiveViewRequest> live_requests;
@@ -208,6 +225,62 @@ class FakeService : public firmware::HeadService {
   std::string metricsText() const override {
     std::lock_guard lock(mutex);
     return metrics;
+  }
+  std::string startCheck(const json& request) override {
+    std::lock_guard lock(mutex);
+    last_check = request;
+    if (start_error) throw *start_error;
+    checks_json.insert(checks_json.begin(), json{{"id", next_id}, {"state", "queued"}});
+    return next_id;
+  }
+  json listChecks() const override {
+    std::lock_guard lock(mutex);
+    return checks_json;
+  }
+  // The calibration session: a board capture answers with board_reply, or
+  // throws session_error (both then apply to every session call).
+  json startSession(const json& body) override {
+    std::lock_guard lock(mutex);
+    last_session_body = body;
+    if (session_error) throw *session_error;
+    session_json = json{{"state", "capturing"},
+                        {"boards", json::array()},
+                        {"planes", json::array()},
+                        {"progress", 0}};
+    return *session_json;
+  }
+  std::optional<json> session() const override {
+    std::lock_guard lock(mutex);
+    return session_json;
+  }
+  std::future<json> captureBoard(const json& body) override {
+    std::lock_guard lock(mutex);
+    last_session_body = body;
+    if (session_error) throw *session_error;
+    board_promise = std::make_shared<std::promise<json>>();
+    ++board_captures;
+    if (!hold_board) board_promise->set_value(board_reply);
+    return board_promise->get_future();
+  }
+  json capturePlane(const json& body) override {
+    std::lock_guard lock(mutex);
+    last_session_body = body;
+    if (session_error) throw *session_error;
+    return {{"index", 0}};
+  }
+  void solveSession() override {
+    std::lock_guard lock(mutex);
+    if (session_error) throw *session_error;
+  }
+  json installSession() override {
+    std::lock_guard lock(mutex);
+    if (session_error) throw *session_error;
+    return {{"installed", true}};
+  }
+  json rollbackCalibration() override {
+    std::lock_guard lock(mutex);
+    if (session_error) throw *session_error;
+    return {{"installed", true}};
   }
   json cameras() const override {
     std::lock_guard lock(mutex);
@@ -480,5 +553,38 @@ inline int statusOf(const std::string& response) {
   if (response.rfind("HTTP/1.", 0) != 0 || response.size() < 12) return 0;
   return std::atoi(response.c_str() + 9);
 }
+
+// A FakeService behind a real HttpApi on a free port that wants `token`,
+// and the requests that carry it.
+class TokenApiTest : public ::testing::Test {
+ protected:
+  explicit TokenApiTest(std::string token) : token_(std::move(token)) {}
+  void SetUp() override {
+    options.port = 0;
+    options.token = token_;
+    api = std::make_unique<firmware::HttpApi>(service, options);
+  }
+  std::string url(const std::string& path) const {
+    return "http://127.0.0.1:" + std::to_string(api->port()) + path;
+  }
+  std::string authHeader() const { return "Authorization: Bearer " + token_; }
+  // With the token and, when given, a JSON body.
+  RequestOptions authed(std::string body = {}) const {
+    RequestOptions o = withHeader(authHeader());
+    if (!body.empty()) {
+      o.body = std::move(body);
+      o.has_body = true;
+      o.headers.emplace_back("Content-Type: application/json");
+    }
+    return o;
+  }
+
+  FakeService service;
+  firmware::HttpOptions options;
+  std::unique_ptr<firmware::HttpApi> api;
+
+ private:
+  std::string token_;
+};
 
 }  // namespace cylscan::test_support

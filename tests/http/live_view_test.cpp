@@ -36,25 +36,9 @@ LiveFrame picture(std::uint64_t sequence, std::string jpeg) {
   return f;
 }
 
-class LiveViewTest : public ::testing::Test {
+class LiveViewTest : public test_support::TokenApiTest {
  protected:
-  void SetUp() override {
-    options.port = 0;
-    options.token = kToken;
-    api = std::make_unique<HttpApi>(service, options);
-  }
-  std::string url(const std::string& path) const {
-    return "http://127.0.0.1:" + std::to_string(api->port()) + path;
-  }
-  RequestOptions authed(std::string body = {}) const {
-    RequestOptions o = test_support::withHeader(kAuth);
-    if (!body.empty()) {
-      o.body = std::move(body);
-      o.has_body = true;
-      o.headers.emplace_back("Content-Type: application/json");
-    }
-    return o;
-  }
+  LiveViewTest() : TokenApiTest(kToken) {}
   std::unique_ptr<RawSocket> rawGet(const std::string& path) {
     auto s = std::make_unique<RawSocket>("127.0.0.1", api->port());
     EXPECT_TRUE(s->ok());
@@ -71,10 +55,6 @@ class LiveViewTest : public ::testing::Test {
     });
     return out;
   }
-
-  FakeService service;
-  HttpOptions options;
-  std::unique_ptr<HttpApi> api;
 };
 
 TEST_F(LiveViewTest, CamerasListIsTheServices) {
