@@ -2,6 +2,7 @@
 // ScanService's checks against a known artifact: a scan of the artifact,
 // queued like any other, whose cloud is measured once it is committed
 // (firmware/sphere_check.hpp), and the history kept in the CheckStore.
+#include <algorithm>
 #include <cmath>
 
 #include "firmware/daemon/log.hpp"
@@ -72,12 +73,19 @@ std::string ScanService::startCheck(const json& body) {
 }
 
 json ScanService::listChecks() const {
-  json out = json::array();
+  std::optional<CheckRecord> current;
   {
     std::lock_guard lock(mutex_);
-    if (job_ && job_->check) out.push_back(*job_->check);
+    if (job_ && job_->check) current = *job_->check;
   }
-  for (const CheckRecord& c : checks_.list())
+  // Read after the job's: a check kept in the history meanwhile is listed
+  // once, from the history.
+  const std::vector<CheckRecord> history = checks_.list();
+  json out = json::array();
+  if (current && std::none_of(history.begin(), history.end(),
+                              [&](const CheckRecord& c) { return c.id == current->id; }))
+    out.push_back(*current);
+  for (const CheckRecord& c : history)
     out.push_back(c);
   return out;
 }
