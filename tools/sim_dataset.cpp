@@ -8,11 +8,13 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "drivers/sim/calibration_targets.hpp"
 #include "drivers/sim/ring_head.hpp"
 #include "formats/atomic_file.hpp"
 #include "formats/capture_bundle.hpp"
@@ -35,25 +37,24 @@ class BoardSet {
  public:
   explicit BoardSet(VirtualCapture& capture) : capture_(capture), head_(capture.head()) {}
 
-  void write(const fs::path& dir, int count, json& truth) {
-    const sim::Checkerboard proto;
+  // One pair per scene of `stills`: one board each, all of the same size (boardStills).
+  void write(const fs::path& dir, const std::vector<sim::Scene>& stills, json& truth) {
+    const auto& proto = std::get<sim::Checkerboard>(stills.front().objects.front().shape);
     fs::create_directories(dir / "main");
     fs::create_directories(dir / "aux");
     formats::writeCheckerboardInfo(dir, {proto.cols, proto.rows, proto.square_mm});
-    const auto poses = boardPoses(count);
-    for (std::size_t i = 0; i < poses.size(); ++i) {
-      const auto images =
-          capture_.still(scene("board", {{"board", poses[i], 0.8}}, 0.7), {"main", "aux"});
-      checkCorners(images[0], poses[i], "main", i);
-      checkCorners(images[1], poses[i], "aux", i);
+    for (std::size_t i = 0; i < stills.size(); ++i) {
+      const auto& board = std::get<sim::Checkerboard>(stills[i].objects.front().shape);
+      const auto images = capture_.still(stills[i], {"main", "aux"});
+      checkCorners(images[0], board, "main", i);
+      checkCorners(images[1], board, "aux", i);
       const std::string id =
-          formats::frameFileName(static_cast<int>(i), static_cast<int>(poses.size()));
+          formats::frameFileName(static_cast<int>(i), static_cast<int>(stills.size()));
       formats::writePng(dir / "main" / (id + ".png"), images[0]);
       formats::writePng(dir / "aux" / (id + ".png"), images[1]);
-      truth[id] = {{"center", vecJson(poses[i].center)},
-                   {"rotation", matrixJson(poses[i].rotation)}};
+      truth[id] = {{"center", vecJson(board.center)}, {"rotation", matrixJson(board.rotation)}};
     }
-    boards_ = static_cast<int>(poses.size());
+    boards_ = static_cast<int>(stills.size());
   }
 
   int boards() const { return boards_; }
@@ -84,42 +85,69 @@ class BoardSet {
     corner_error_ = std::max(corner_error_, std::min(forward, backward));
   }
 
-  // Board poses (deterministic), kept when every corner is well inside both images.
-  std::vector<sim::Checkerboard> boardPoses(int count) const {
-    std::vector<sim::Checkerboard> poses;
-    const double margin = 0.04 * head_.cameraModel("main").width();
-    for (int i = 0; static_cast<int>(poses.size()) < count && i < 400; ++i) {
-      sim::Checkerboard b;
-      const double z = 530 + 110 * std::fmod(i * 0.618034, 1.0);
-      const double rx = 22 * std::sin(i * 2.1), ry = 25 * std::sin(i * 1.3 + 0.7);
-      const double rz = 10 * std::sin(i * 0.9 + 0.3);
-      b.center = Vec3(14 * std::sin(i * 1.7), 10 * std::cos(i * 2.3), z);
-      b.rotation = sim::rotationFromVectorDeg({rx, ry, rz});
-      bool inside = true;
-      for (const char* name : {"main", "aux"}) {
-        const sim::CameraModel& cam = head_.cameraModel(name);
-        const Vec3 towards = (cam.centre() - b.center).normalized();
-        inside = inside && std::abs(towards.dot(b.rotation.col(2))) > std::cos(50 * sim::kDeg);
-        for (const Vec3& c : b.corners()) {
-          const auto px = cam.project(c);
-          inside = inside && px && px->x() > margin && px->y() > margin &&
-                   px->x() < cam.width() - 1 - margin && px->y() < cam.height() - 1 - margin;
-        }
-      }
-      if (inside) poses.push_back(b);
-    }
-    if (static_cast<int>(poses.size()) < count) {
-      throw std::runtime_error("simulate: could not place " + std::to_string(count) +
-                               " checkerboard poses in view");
-    }
-    return poses;
-  }
-
   VirtualCapture& capture_;
   sim::VirtualHead& head_;
   int boards_ = 0;
   double corner_error_ = 0;
 };
+
+// The checkerboard stills: the board's targets (scenes/calibration/boardNN.toml)
+// in order, then, past the last file, the generator's poses for this head
+// from that index on. board/sim's files are the generator's first poses for
+// its head (tests/sim/calibration_targets_test.cpp), so there the sequence
+// simply goes on; a board without files gets the generator's alone.
+std::vector<sim::Scene> boardStills(const fs::path& dir, int count, const sim::VirtualHead& head) {
+  std::vector<sim::Scene> scenes = sim::loadCalibrationScenes(dir, "board");
+  const auto shipped = static_cast<int>(scenes.size());
+  if (count <= shipped) {
+    scenes.resize(static_cast<std::size_t>(count));
+  } else {
+    const auto poses =
+        sim::calibrationBoardPoses(head.cameraModel("main"), head.cameraModel("aux"), count);
+    for (int i = shipped; i < count; ++i)
+      scenes.push_back(sim::calibrationScene(poses[static_cast<std::size_t>(i)], i));
+  }
+  const sim::Checkerboard* first = nullptr;
+  for (int i = 0; i < count; ++i) {
+    const sim::Scene& s = scenes[static_cast<std::size_t>(i)];
+    const auto* board =
+        s.objects.size() == 1 ? std::get_if<sim::Checkerboard>(&s.objects.front().shape) : nullptr;
+    if (first == nullptr) first = board;
+    if (board == nullptr || board->cols != first->cols || board->rows != first->rows ||
+        board->square_mm != first->square_mm) {
+      const std::string stem = sim::calibrationSceneStem("board", i);
+      throw std::invalid_argument(
+          (i < shipped ? (dir / (stem + ".toml")).string() : "generated target " + stem) +
+          ": a checkerboard target must be one checkerboard, of the same size as board00's");
+    }
+  }
+  return scenes;
+}
+
+// The calibration planes: the first `count` of the board's targets
+// (scenes/calibration/planeNN.toml). Asked for more than it has, `count`
+// generated planes spread over the working range instead: a spread set
+// depends on its count, so the shipped one cannot begin a larger one.
+std::vector<sim::Scene> planeScenes(const fs::path& dir, int count) {
+  std::vector<sim::Scene> scenes = sim::loadCalibrationScenes(dir, "plane");
+  if (static_cast<int>(scenes.size()) < count) {
+    scenes.clear();
+    const auto poses = sim::calibrationPlanePoses(count);
+    for (int i = 0; i < count; ++i)
+      scenes.push_back(sim::calibrationScene(poses[static_cast<std::size_t>(i)], i));
+    return scenes;
+  }
+  scenes.resize(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    const sim::Scene& s = scenes[static_cast<std::size_t>(i)];
+    if (s.objects.size() != 1 || !std::holds_alternative<sim::Plane>(s.objects.front().shape)) {
+      throw std::invalid_argument(
+          (dir / (sim::calibrationSceneStem("plane", i) + ".toml")).string() +
+          ": a plane target must be one plane");
+    }
+  }
+  return scenes;
+}
 
 // The true stereo calibration of main and aux (docs/formats.md, stereo calibration).
 formats::StereoCalibration stereoTruth(const sim::VirtualHead& head) {
@@ -181,8 +209,9 @@ void writeDataset(const SimulateRequest& request, const drivers::BoardProfile& p
   fs::create_directories(out);
   json truth = {{"scenes", json::object()}, {"calib", json::object()}, {"board", json::object()}};
 
+  const fs::path targets = sim::calibrationScenesDir(profile.file.parent_path());
   BoardSet boards(capture);
-  boards.write(out / "board", request.boards, truth["board"]);
+  boards.write(out / "board", boardStills(targets, request.boards, head), truth["board"]);
 
   const sim::CameraParams& main_params = config.cameras.front();
   const auto bundleExtra = [&](const sim::Scene& s) {
@@ -202,13 +231,12 @@ void writeDataset(const SimulateRequest& request, const drivers::BoardProfile& p
   };
 
   const int poses = request.poses;
+  const std::vector<sim::Scene> planes = planeScenes(targets, poses);
   for (int i = 0; i < poses; ++i) {
-    const double z = poses == 1 ? 580.0 : 540.0 + 80.0 * i / (poses - 1);
-    const double rx = 10 * std::sin(i * 2.4 + 0.5), ry = 12 * std::sin(i * 1.7 + 1.1);
-    const sim::SceneObject p = plane("plane", {0, 0, z}, rx, ry);
-    const std::string id = "pose" + formats::frameFileName(i, poses);
-    scan(out / "calib" / id, scene(id, {p}), {"main", "aux"});
-    truth["calib"][id] = truthOf(p);
+    sim::Scene s = planes[static_cast<std::size_t>(i)];
+    s.name = "pose" + formats::frameFileName(i, poses);
+    scan(out / "calib" / s.name, s, {"main", "aux"});
+    truth["calib"][s.name] = truthOf(s);
   }
   for (const sim::Scene& s : tests) {
     scan(out / "test" / s.name, s, {"main"});
@@ -272,6 +300,42 @@ void writeDataset(const SimulateRequest& request, const drivers::BoardProfile& p
               << tests.size() << " test scenes, " << study.scenes.size() << " study scenes ("
               << main.width() << "x" << main.height() << ", N=" << frames << ", noise "
               << request.noise << ", seed " << request.seed << ") in " << seconds << " s -> "
+              << out.string() << "\n";
+  }
+}
+
+void writeCalibrationScenes(const SimulateRequest& request, const drivers::BoardProfile& profile) {
+  const sim::HeadConfig& config = profile.sim->head;
+  const auto model = [&](const std::string& name) {
+    for (const sim::CameraParams& c : config.cameras)
+      if (c.name == name) return sim::CameraModel(c);
+    throw std::invalid_argument(profile.file.string() + ": the virtual head has no camera '" +
+                                name + "' to place checkerboards for");
+  };
+  const auto boards = sim::calibrationBoardPoses(model("main"), model("aux"), request.boards);
+  const auto planes = sim::calibrationPlanePoses(request.poses);
+  const fs::path out(request.out);
+  fs::create_directories(out);
+  for (std::size_t i = 0; i < boards.size(); ++i) {
+    const int n = static_cast<int>(i);
+    formats::writeFileAtomically(out / (sim::calibrationSceneStem("board", n) + ".toml"),
+                                 sim::calibrationSceneToml(boards[i], n));
+  }
+  for (std::size_t i = 0; i < planes.size(); ++i) {
+    const int n = static_cast<int>(i);
+    formats::writeFileAtomically(out / (sim::calibrationSceneStem("plane", n) + ".toml"),
+                                 sim::calibrationSceneToml(planes[i], n));
+  }
+  if (request.json) {
+    std::cout << json{{"out", out.string()},
+                      {"board", profile.file.string()},
+                      {"boards", boards.size()},
+                      {"planes", planes.size()}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << "simulate: " << boards.size() << " checkerboard and " << planes.size()
+              << " plane targets for the head of " << profile.file.string() << " -> "
               << out.string() << "\n";
   }
 }

@@ -25,4 +25,10 @@ void writeDataset(const SimulateRequest& request, const drivers::BoardProfile& p
                   const nlohmann::json& bundle_extra, const nlohmann::json& truth_extra,
                   SimClock::time_point started);
 
+// Writes the generator's calibration targets for `profile`'s head (cameras
+// "main" and "aux") into request.out as scene files: request.boards
+// boardNN.toml and request.poses planeNN.toml (drivers/sim/calibration_targets.hpp).
+// board/sim's scenes/calibration/ is this command's output for its head.
+void writeCalibrationScenes(const SimulateRequest& request, const drivers::BoardProfile& profile);
+
 }  // namespace cylscan::tools

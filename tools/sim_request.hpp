@@ -30,6 +30,9 @@ struct SimulateRequest {
   int repeats = 0;
   bool quick = false;
   bool json = false;
+  // Write the calibration targets' scene files (--boards boards, --poses
+  // planes, generated for the board's head) to `out` instead of rendering.
+  bool write_calibration_scenes = false;
   // A 360° head (a ring board such as board/sim360): --camera NAME (the
   // calibration dataset of direction NAME), --turntable (the extrinsics
   // dataset), or neither (a ring scan of the board's default scene).

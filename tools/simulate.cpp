@@ -28,6 +28,15 @@ void runSimulate(SimulateRequest request) {
   }
   const drivers::BoardProfile profile = simulationProfile(request);
   const firmware::ScanOptions options = simulationOptions(request, profile);
+  if (request.write_calibration_scenes) {
+    if (options.plan == firmware::PlanKind::Ring || !request.camera.empty() || request.turntable) {
+      throw std::invalid_argument(profile.file.string() +
+                                  ": --write-calibration-scenes is for a one-direction head "
+                                  "(cameras main and aux), without --camera or --turntable");
+    }
+    writeCalibrationScenes(request, profile);
+    return;
+  }
   if (options.plan == firmware::PlanKind::Ring) {
     writeRingDataset(request, started);
     return;
@@ -84,6 +93,10 @@ void addSimulateCommand(CLI::App& app) {
   cmd->add_flag("--turntable", request->turntable,
                 "with a 360° head's --board: the extrinsics dataset (the head on a turntable)");
   cmd->add_flag("--quick", request->quick, "320x256 unless --width/--height are given");
+  cmd->add_flag("--write-calibration-scenes", request->write_calibration_scenes,
+                "instead of rendering, write the calibration targets generated for the board's "
+                "head to --out as scene files (--boards boardNN.toml, --poses planeNN.toml): "
+                "how board/sim/scenes/calibration is made");
   cmd->add_flag("--json", request->json, "print the summary as one JSON object");
   cmd->callback([request, frames] {
     request->frames_given = frames->count() > 0;
