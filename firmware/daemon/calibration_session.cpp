@@ -181,9 +181,8 @@ std::unique_ptr<CalibrationSession> CalibrationSession::create(fs::path dir,
   fs::remove_all(dir, ec);
   fs::create_directories(dir / "planes");
   auto s = std::make_unique<CalibrationSession>(std::move(dir), board, image);
-  s->s_.created = std::move(created);
   std::lock_guard lock(s->mutex_);
-  s->guideLocked();
+  s->s_.created = std::move(created);
   s->saveLocked();
   return s;
 }
@@ -199,6 +198,7 @@ std::unique_ptr<CalibrationSession> CalibrationSession::load(const fs::path& dir
                                     j.at("board").at("rows").get<int>(),
                                     j.at("board").at("square_mm").get<double>()};
     auto s = std::make_unique<CalibrationSession>(dir, board, image);
+    std::unique_lock fill(s->mutex_);  // the guidance thread reads the boards
     SessionState& st = s->s_;
     st.state = j.at("state").get<std::string>();
     st.created = j.at("created").get<std::string>();
@@ -238,8 +238,8 @@ std::unique_ptr<CalibrationSession> CalibrationSession::load(const fs::path& dir
       plane.rmse_mm = optionalNumber(p, "rmse_mm");
       st.planes.push_back(std::move(plane));
     }
-    std::lock_guard lock(s->mutex_);
-    s->guideLocked();
+    fill.unlock();
+    s->cv_.notify_all();  // the kept pairs' guidance
     return s;
   } catch (const std::exception& e) {
     logWarn("the calibration session in " + dir.string() + " cannot be read (" + e.what() +
@@ -281,6 +281,7 @@ json CalibrationSession::describe() const {
   nlohmann::json out = {{"state", s_.state},           {"created", s_.created},
                         {"boards", std::move(boards)}, {"planes", std::move(planes)},
                         {"progress", s_.progress},     {"guidance", toJson(s_.guidance)}};
+  out["guidance"]["pairs"] = guided_pairs_;
   if (s_.result) out["result"] = *s_.result;
   if (s_.error) out["error"] = *s_.error;
   return out;
@@ -315,20 +316,60 @@ void CalibrationSession::saveLocked() const {
   formats::writeFileAtomically(dir_ / "session.json", j.dump());
 }
 
-void CalibrationSession::guideLocked() {
-  std::vector<std::vector<cv::Point2f>> main, aux;
-  for (const SessionBoard& b : s_.boards)
-    if (!b.main.empty()) {
-      main.push_back(b.main);
-      aux.push_back(b.aux);
+CalibrationSession::CalibrationSession(fs::path dir, formats::CheckerboardInfo board,
+                                       cv::Size image)
+    : dir_(std::move(dir)), board_(board), image_(image) {
+  s_.guidance.advice = "take more checkerboard views: 0 kept, " +
+                       std::to_string(kMinPairsForGuidance) + " before the first estimate";
+  guidance_thread_ = std::thread([this] { guide(); });
+}
+
+CalibrationSession::~CalibrationSession() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  if (guidance_thread_.joinable()) guidance_thread_.join();
+}
+
+std::size_t CalibrationSession::keptCountLocked() const {
+  return static_cast<std::size_t>(std::count_if(
+      s_.boards.begin(), s_.boards.end(), [](const SessionBoard& b) { return !b.main.empty(); }));
+}
+
+bool CalibrationSession::waitGuided(std::chrono::milliseconds timeout) const {
+  std::unique_lock lock(mutex_);
+  return cv_.wait_for(lock, timeout, [&] { return guided_pairs_ == keptCountLocked(); });
+}
+
+void CalibrationSession::guide() {
+  for (;;) {
+    std::vector<std::vector<cv::Point2f>> main, aux;
+    {
+      std::unique_lock lock(mutex_);
+      cv_.wait(lock, [&] { return stopping_ || guided_pairs_ != keptCountLocked(); });
+      if (stopping_) return;
+      for (const SessionBoard& b : s_.boards)
+        if (!b.main.empty()) {
+          main.push_back(b.main);
+          aux.push_back(b.aux);
+        }
     }
-  try {
-    s_.guidance = guideCapture(board_, main, aux, image_, guess_);
-  } catch (const cv::Exception& e) {
-    guess_ = GuidanceGuess{};
-    s_.guidance = CaptureGuidance{};
-    s_.guidance.advice =
-        std::string("the views cannot be fitted yet (") + e.what() + "): take more, tilted views";
+    CaptureGuidance guidance;
+    try {
+      guidance = guideCapture(board_, main, aux, image_, guess_);
+    } catch (const cv::Exception& e) {
+      guess_ = GuidanceGuess{};
+      guidance.advice =
+          std::string("the views cannot be fitted yet (") + e.what() + "): take more, tilted views";
+    }
+    {
+      std::lock_guard lock(mutex_);
+      s_.guidance = std::move(guidance);
+      guided_pairs_ = main.size();
+    }
+    cv_.notify_all();
   }
 }
 
@@ -341,8 +382,8 @@ int CalibrationSession::addBoard(SessionBoard board) {
   }
   const bool kept = !board.main.empty();
   s_.boards.push_back(std::move(board));
-  if (kept) guideLocked();
   saveLocked();
+  if (kept) cv_.notify_all();
   return s_.boards.back().index;
 }
 

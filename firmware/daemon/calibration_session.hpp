@@ -11,10 +11,13 @@
 // board tilts, and whether that is enough (CaptureGuidance).
 #pragma once
 
+#include <chrono>
+#include <condition_variable>
 #include <filesystem>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -116,7 +119,7 @@ class CalibrationSession {
   nlohmann::json describe() const;  // GET /api/v1/calibration/session
 
   // Each change is written to session.json before it returns.
-  int addBoard(SessionBoard board);  // its index; the guidance is updated
+  int addBoard(SessionBoard board);  // its index; the guidance follows
   int beginPlane(std::optional<std::string> scene);
   void finishPlane(int index, std::optional<std::string> error);
   void setSolving();
@@ -127,19 +130,35 @@ class CalibrationSession {
   std::vector<SessionPlane> donePlanes() const;
   std::vector<SessionBoard> keptBoards() const;
 
-  CalibrationSession(std::filesystem::path dir, formats::CheckerboardInfo board, cv::Size image)
-      : dir_(std::move(dir)), board_(board), image_(image) {}
+  // Waits until the guidance reflects every pair kept so far (tests, and a
+  // solve that wants the last figures); false on timeout.
+  bool waitGuided(std::chrono::milliseconds timeout) const;
+
+  // Starts the guidance thread.
+  CalibrationSession(std::filesystem::path dir, formats::CheckerboardInfo board, cv::Size image);
+  // Stops and joins the guidance thread (a fit under way is finished first).
+  ~CalibrationSession();
+  CalibrationSession(const CalibrationSession&) = delete;
+  CalibrationSession& operator=(const CalibrationSession&) = delete;
 
  private:
   void saveLocked() const;
-  void guideLocked();
+  std::size_t keptCountLocked() const;
+  // The guidance thread: refits whenever pairs were kept since its last
+  // fit, so that a capture never waits for the fits (a second or more once
+  // there are many pairs) and the fits of pairs taken quickly coalesce.
+  void guide();
 
   std::filesystem::path dir_;
   formats::CheckerboardInfo board_;
   cv::Size image_;
   mutable std::mutex mutex_;
+  mutable std::condition_variable cv_;
   SessionState s_;
-  GuidanceGuess guess_;  // the last guidance's fits
+  std::size_t guided_pairs_ = 0;  // kept pairs the guidance reflects
+  bool stopping_ = false;
+  GuidanceGuess guess_;  // the last guidance's fits (the guidance thread's)
+  std::thread guidance_thread_;
 };
 
 }  // namespace cylscan::firmware

@@ -595,7 +595,7 @@ void ScanService::finishDone(const ScanRecord& record, const ScanReport& report)
 
 // Recorded with its error and without files; when even that cannot be
 // written, the partial dir goes and the scan is only reported.
-void ScanService::finishFailed(Job& job, const std::string& error) {
+void ScanService::finishFailed(const Job& job, const std::string& error) {
   ScanRecord record;
   {
     std::lock_guard lock(mutex_);

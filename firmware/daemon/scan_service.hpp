@@ -169,7 +169,7 @@ class ScanService final : public HeadService {
   void onProgress(Job& job, const ScanProgress& progress);
   ScanRecord doneRecord(const Job& job, ScanResult output, const ScanReport& report) const;
   void finishDone(const ScanRecord& record, const ScanReport& report);
-  void finishFailed(Job& job, const std::string& error);
+  void finishFailed(const Job& job, const std::string& error);
   std::string failureOf(const std::exception_ptr& failure);
   void retain(const std::string& id);
   bool stopping() const;

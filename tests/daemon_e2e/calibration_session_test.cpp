@@ -148,7 +148,8 @@ TEST(DaemonCalibrationSession, TheHeadCalibratesItselfAndPassesTheCheck) {
   }
   // Every shipped pose is in view of both cameras (simulate checks it).
   EXPECT_EQ(found, static_cast<int>(boards.size()));
-  json s = session(c);
+  // The guidance follows the captures on a thread of its own.
+  json s = waitSession(c, [&](const json& j) { return j["guidance"]["pairs"] == found; });
   EXPECT_EQ(s["boards"].size(), boards.size());
   ASSERT_TRUE(s["guidance"].is_object()) << s.dump();
   EXPECT_TRUE(s["guidance"]["cameras"]["main"]["sigma_px"]["cx"].is_number()) << s.dump();
@@ -187,8 +188,8 @@ TEST(DaemonCalibrationSession, TheHeadCalibratesItselfAndPassesTheCheck) {
   ASSERT_EQ(r.status, 202) << r.describe();
   const std::string id = r.json()["id"];
   json check = json::object();
-  for (int i = 0; i < 2400 && check.value("state", "") != "done" &&
-                  check.value("state", "") != "failed";
+  for (int i = 0;
+       i < 2400 && check.value("state", "") != "done" && check.value("state", "") != "failed";
        ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     for (const json& k : c.get("/api/v1/checks").json())
