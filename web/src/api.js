@@ -51,8 +51,9 @@ async function errorOf(response) {
 }
 
 // fetch() of an API path; throws ApiError (with the daemon's message) unless 2xx.
-export async function request(path, { method = 'GET', json, headers = {}, signal } = {}) {
+export async function request(path, { method = 'GET', json, headers = {}, signal, cache } = {}) {
   const init = { method, headers: authHeaders(headers), signal };
+  if (cache) init.cache = cache;
   if (json !== undefined) {
     init.headers['Content-Type'] = 'application/json';
     init.body = JSON.stringify(json);
@@ -69,6 +70,10 @@ export async function getJson(path) {
 
 export async function postJson(path, body) {
   return (await request(path, { method: 'POST', json: body })).json();
+}
+
+export async function patchJson(path, body) {
+  return (await request(path, { method: 'PATCH', json: body })).json();
 }
 
 export async function getBytes(path, signal) {

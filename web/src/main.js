@@ -1,10 +1,16 @@
 // SPDX-License-Identifier: Apache-2.0
-// The page of cylscand: head status, the Scan button, live progress, the
-// stored scans and, for the selected one, its previews and point cloud.
+// The page of cylscand, in two views. Scan: head status, the Scan button, live
+// progress, the stored scans and, for the selected one, its previews and point
+// cloud. Set-up: each camera's live picture and settings (setup.js), the
+// calibration session (calibration.js), and the checks against a known
+// artifact with their history (checks.js).
 
 import './app.css';
 import { ApiError, getBlob, getBytes, getJson, onAuthNeeded, postJson, remove, setToken, token } from './api.js';
+import { CalibrationView } from './calibration.js';
+import { ChecksView } from './checks.js';
 import { connectEvents } from './events.js';
+import { SetupView } from './setup.js';
 import { PointCloudViewer } from './viewer.js';
 
 const $ = (id) => document.getElementById(id);
@@ -18,6 +24,7 @@ const state = {
   previewUrls: [],
   loadAbort: null,
   viewer: null,
+  capture: null, // the status' `capture` while the head captures for the calibration session
 };
 
 // What the test (and a curious user) can read of the viewer.
@@ -49,6 +56,8 @@ function element(tag, props = {}, children = []) {
   return node;
 }
 
+const isUnauthorized = (error) => error instanceof ApiError && error.status === 401;
+
 function showMessage(text, kind = '') {
   const box = $('scan-message');
   box.textContent = text;
@@ -57,17 +66,22 @@ function showMessage(text, kind = '') {
 
 // --------------------------------------------------------------------- status
 
-function showState(value) {
+// `capture`: what the head captures for the calibration session, if anything.
+function showState(value, capture = null) {
   const node = $('st-state');
-  node.textContent = value || '–';
+  state.capture = value === 'scanning' ? capture ?? null : null;
+  node.textContent = value ? `${value}${state.capture ? ` (${state.capture})` : ''}` : '–';
   node.className = `state state-${value}`;
   $('scan-button').disabled = value === 'scanning';
+  if (setup && value) setup.setHeadState(value, state.capture);
+  if (checks && value) checks.setHeadState(value);
+  if (calibration && value) calibration.setHeadState(value);
 }
 
 async function refreshStatus() {
   try {
     const status = await getJson('status');
-    showState(status.state);
+    showState(status.state, status.capture);
     $('st-board').textContent = status.board ?? '–';
     $('st-version').textContent = status.version ?? '–';
     const calibrated = status.calibration && status.calibration.main;
@@ -75,11 +89,13 @@ async function refreshStatus() {
     cal.textContent = calibrated ? 'installed' : 'not installed';
     cal.className = calibrated ? 'ok' : 'warn';
     $('st-disk').textContent = formatBytes(status.disk_free_bytes);
+    if (setup) setup.setCalibration(status.cameras);
+    if (calibration) calibration.setInstalled(status.calibration);
     const lastError = $('last-error');
     lastError.hidden = !status.last_error;
     lastError.textContent = status.last_error ? `Last error: ${status.last_error}` : '';
   } catch (error) {
-    showMessage(`Status: ${error.message}`, 'error');
+    if (!isUnauthorized(error)) showMessage(`Status: ${error.message}`, 'error');
   }
 }
 
@@ -129,7 +145,8 @@ async function refreshScans() {
       if (newestDone) select(newestDone.id);
     }
   } catch (error) {
-    showMessage(`Scans: ${error.message}`, 'error');
+    // A 401 has shown the token box, which says what to do.
+    if (!isUnauthorized(error)) showMessage(`Scans: ${error.message}`, 'error');
   }
 }
 
@@ -223,6 +240,14 @@ function unselect() {
   state.previewUrls = [];
   if (state.viewer) state.viewer.clear();
   window.cylscanViewer.pointCount = 0;
+  window.cylscanViewer.error = null;
+  for (const img of Object.keys(PREVIEWS)) {
+    $(img).removeAttribute('src');
+    $(img).hidden = false;
+    const caption = $(img).parentElement.querySelector('figcaption');
+    caption.textContent = caption.dataset.name;
+    caption.className = '';
+  }
 }
 
 async function select(id) {
@@ -236,7 +261,18 @@ async function select(id) {
   state.loadAbort = abort;
   const base = `scans/${encodeURIComponent(id)}`;
 
+  // A scan lists the files it made (a scan without a calibration has no
+  // cloud and no depth): those it lacks are said so, not fetched.
+  const scan = state.scans.find((s) => s.id === id);
+  const has = (file) => !scan || !Array.isArray(scan.files) || scan.files.includes(file);
   for (const [img, file] of Object.entries(PREVIEWS)) {
+    const caption = $(img).parentElement.querySelector('figcaption');
+    if (!has(file)) {
+      $(img).hidden = true;
+      caption.textContent = `${caption.dataset.name}: not made by this scan`;
+      caption.className = 'muted';
+      continue;
+    }
     getBlob(`${base}/${file}`, abort.signal)
       .then((blob) => {
         const url = URL.createObjectURL(blob);
@@ -244,11 +280,19 @@ async function select(id) {
         $(img).src = url;
       })
       .catch((error) => {
-        if (!abort.signal.aborted) $(img).alt = `${file}: ${error.message}`;
+        if (abort.signal.aborted) return;
+        caption.textContent = `${caption.dataset.name}: ${error.message}`;
+        caption.className = 'error';
       });
   }
 
   const info = $('viewer-info');
+  info.className = 'muted';
+  if (!has('cloud.ply')) {
+    info.textContent = 'No point cloud: the scan was made without a calibration.';
+    showCameraLegend([]);
+    return;
+  }
   info.textContent = 'loading the point cloud…';
   try {
     if (!state.viewer) state.viewer = new PointCloudViewer($('viewer'));
@@ -262,20 +306,23 @@ async function select(id) {
     if (abort.signal.aborted) return;
     window.cylscanViewer.error = error.message;
     info.textContent = `Point cloud: ${error.message}`;
+    info.className = 'error';
   }
 }
 
 // A merged 360° cloud: the viewer coloured by camera, and the legend of the
-// cameras (name, colour, point count). A one-camera cloud hides the legend.
+// cameras (name, colour, point count). A cloud whose points all come from one
+// camera (no camera property, or a ring scan with main alone) has nothing to
+// tell apart: no legend, coloured by intensity.
 function showCameraLegend(cameras) {
   const legend = $('camera-legend');
   legend.replaceChildren();
   window.cylscanViewer.cameras = cameras.map(({ name, points }) => ({ name, points }));
-  if (cameras.length === 0) {
+  if (cameras.filter((camera) => camera.points > 0).length < 2) {
     legend.hidden = true;
     if ($('colour-mode').value === 'camera') {
       $('colour-mode').value = 'intensity';
-      state.viewer.colour('intensity');
+      if (state.viewer) state.viewer.colour('intensity');
     }
     return;
   }
@@ -296,10 +343,14 @@ function showCameraLegend(cameras) {
 
 function onEvent(type, data) {
   if (type === 'state') {
-    showState(data.state);
+    showState(data.state, data.capture);
     if (data.state !== 'scanning') refreshStatus();
+  } else if (type === 'progress' && state.capture) {
+    // A capture of the calibration session: no scan of the list.
+    calibration.onCaptureProgress(data);
   } else if (type === 'progress') {
     showProgress(data);
+    checks.onProgress(data);
     const scan = state.scans.find((s) => s.id === data.id);
     if (scan) {
       scan.progress = data.progress;
@@ -320,6 +371,12 @@ function onEvent(type, data) {
     if (data.state === 'failed') showMessage(`Scan ${data.id} failed: ${data.error ?? 'unknown error'}`, 'error');
   } else if (type === 'error') {
     showMessage(`Scan ${data.id ?? ''} failed: ${data.error}`, 'error');
+  } else if (type === 'check') {
+    checks.onCheck(data);
+  } else if (type === 'calibration') {
+    calibration.onSession(data);
+  } else if (type === 'calibration_progress') {
+    calibration.onSolveProgress(data);
   }
 }
 
@@ -331,6 +388,8 @@ function onConnection(what, detail) {
     // Whatever happened while the stream was down.
     refreshStatus();
     refreshScans();
+    if (checks.loaded) checks.refresh();
+    if (calibration.loaded) calibration.refresh();
   } else if (what === 'unauthorized') {
     badge.textContent = 'token needed';
     badge.className = 'badge warn';
@@ -339,6 +398,51 @@ function onConnection(what, detail) {
     badge.textContent = `reconnecting in ${Math.round(detail.wait / 1000)} s`;
     badge.className = 'badge warn';
   }
+}
+
+// ---------------------------------------------------------------------- views
+
+let setup = null;
+let checks = null;
+let calibration = null;
+const VIEWS = { scan: { tab: 'scan-tab', panel: 'scan-view' }, setup: { tab: 'setup-tab', panel: 'setup-view' } };
+
+// Shows one view; the URL's fragment (#setup) keeps it across a reload.
+function showView(name) {
+  for (const [view, { tab, panel }] of Object.entries(VIEWS)) {
+    const selected = view === name;
+    $(tab).setAttribute('aria-selected', String(selected));
+    $(tab).tabIndex = selected ? 0 : -1;
+    $(panel).hidden = !selected;
+  }
+  if (name === 'setup') {
+    setup.show();
+    calibration.show();
+    checks.show();
+  } else setup.hide();
+  const url = name === 'scan' ? location.pathname + location.search : '#setup';
+  if ((location.hash === '#setup') !== (name === 'setup')) history.replaceState(null, '', url);
+}
+
+// The tabs as WAI-ARIA tabs: arrows, Home and End move between them.
+function setupTabs() {
+  const names = Object.keys(VIEWS);
+  for (const name of names) $(VIEWS[name].tab).addEventListener('click', () => showView(name));
+  $('scan-tab').parentElement.addEventListener('keydown', (event) => {
+    const at = names.findIndex((name) => $(VIEWS[name].tab) === document.activeElement);
+    if (at < 0) return;
+    let next = null;
+    if (event.key === 'ArrowRight') next = (at + 1) % names.length;
+    else if (event.key === 'ArrowLeft') next = (at - 1 + names.length) % names.length;
+    else if (event.key === 'Home') next = 0;
+    else if (event.key === 'End') next = names.length - 1;
+    if (next === null) return;
+    event.preventDefault();
+    showView(names[next]);
+    $(VIEWS[names[next]].tab).focus();
+  });
+  window.addEventListener('hashchange', () => showView(location.hash === '#setup' ? 'setup' : 'scan'));
+  showView(location.hash === '#setup' ? 'setup' : 'scan');
 }
 
 // ---------------------------------------------------------------------- token
@@ -359,13 +463,26 @@ function setupToken() {
     refreshStatus();
     refreshScans();
     if (events) events.retryNow();
+    setup.retryNow();
+    if (!$('setup-view').hidden) {
+      checks.refresh();
+      calibration.refresh();
+    }
   });
 }
 
 // ----------------------------------------------------------------------- main
 
 function main() {
+  setup = new SetupView($('setup-view'));
+  checks = new ChecksView($('checks'));
+  calibration = new CalibrationView($('calibration'), {
+    holdLive: (kind) => setup.holdLive(kind),
+    releaseLive: () => setup.releaseLive(),
+    onInstalled: refreshStatus,
+  });
   setupToken();
+  setupTabs();
   $('scan-button').addEventListener('click', startScan);
   $('colour-mode').addEventListener('change', (event) => state.viewer && state.viewer.colour(event.target.value));
   $('reset-view').addEventListener('click', () => state.viewer && state.viewer.frame());

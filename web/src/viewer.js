@@ -57,8 +57,9 @@ function ramp(t, out) {
 // One colour per camera index (distinct hues, readable on the dark background).
 export const CAMERA_COLOURS = [0x4fc3f7, 0xffb74d, 0x81c784, 0xf06292, 0xba68c8, 0xfff176, 0x4db6ac, 0xe57373];
 
+// A value that is no camera index (a corrupt file) gets grey rather than no colour.
 export function cameraColour(index) {
-  return CAMERA_COLOURS[index % CAMERA_COLOURS.length];
+  return Number.isInteger(index) && index >= 0 ? CAMERA_COLOURS[index % CAMERA_COLOURS.length] : 0x9e9e9e;
 }
 
 // The `comment camera <index> <name>` lines of a PLY header: names by index.
@@ -72,6 +73,23 @@ export function plyCameraNames(bytes) {
   }
   return names;
 }
+
+// The names of the vertex properties a PLY header declares.
+export function plyVertexProperties(bytes) {
+  const head = new TextDecoder('latin1').decode(new Uint8Array(bytes, 0, Math.min(bytes.byteLength, 65536)));
+  const end = head.indexOf('end_header');
+  const names = [];
+  let inVertex = false;
+  for (const line of head.slice(0, end < 0 ? head.length : end).split(/\r?\n/)) {
+    const words = line.trim().split(/\s+/);
+    if (words[0] === 'element') inVertex = words[1] === 'vertex';
+    else if (inVertex && words[0] === 'property' && words[1] !== 'list') names.push(words[words.length - 1]);
+  }
+  return names;
+}
+
+// The extra vertex properties the viewer uses, when the cloud has them.
+const EXTRA_PROPERTIES = ['intensity', 'u', 'v', 'camera'];
 
 // Typical distance (mm) between neighbouring points, the size a point is
 // drawn with so that a surface looks closed at any zoom. Clouds of the head
@@ -109,7 +127,7 @@ export class PointCloudViewer {
     this.points = null;
     this.mode = 'intensity';
     this.frameSphere = null;
-    this.cameras = [];  // [{index, name, points, colour}] of a merged cloud
+    this.cameras = []; // [{index, name, points, colour}] of a cloud with a camera property
     this.renderer = new WebGLRenderer({ antialias: false, preserveDrawingBuffer: true });
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
     this.renderer.setClearColor(new Color(BACKGROUND));
@@ -154,7 +172,13 @@ export class PointCloudViewer {
   // Shows the cloud of a PLY file's bytes; returns its number of points.
   load(bytes) {
     const loader = new PLYLoader();
-    loader.setCustomPropertyNameMapping({ intensity: ['intensity'], u: ['u'], v: ['v'], camera: ['camera'] });
+    // Only the properties this file has: PLYLoader fills a mapped property the
+    // file lacks with undefined for every vertex, which reads back as NaN (a
+    // one-camera cloud would look like a merged cloud of camera "NaN").
+    const present = new Set(plyVertexProperties(bytes));
+    const mapping = {};
+    for (const name of EXTRA_PROPERTIES) if (present.has(name)) mapping[name] = [name];
+    loader.setCustomPropertyNameMapping(mapping);
     const geometry = loader.parse(bytes);
     geometry.deleteAttribute('normal');
     this.clear();
