@@ -119,9 +119,22 @@ TEST(DaemonCalibrationSession, RefusalsNameWhatIsWrong) {
   } else {
     finishScan(c, scan.json()["id"]);
   }
-  const json s = waitSession(c, planesSettled);
+  json s = waitSession(c, planesSettled);
   EXPECT_EQ(s["planes"][0]["state"], "done") << s.dump();
   ASSERT_TRUE(waitIdle(c));
+
+  // Five pairs found: the guidance thread fits both cameras (4 are its least).
+  const auto targets = calibrationScenes("board");
+  for (std::size_t i = 0; i < 5; ++i) {
+    r = c.postJson("/api/v1/calibration/session/boards", json{{"scene", targets[i * 7]}});
+    ASSERT_EQ(r.status, 201) << r.describe();
+    EXPECT_TRUE(r.json()["found"]["main"].get<bool>()) << r.body;
+  }
+  s = waitSession(c, [](const json& j) { return j["guidance"]["pairs"] == 5; });
+  EXPECT_TRUE(s["guidance"]["cameras"]["main"]["sigma_px"]["cx"].is_number()) << s.dump();
+  EXPECT_FALSE(s["guidance"]["enough"].get<bool>()) << "5 pairs are below the 10 asked";
+  r = c.postJson("/api/v1/calibration/session/solve", json::object());
+  EXPECT_EQ(r.status, 409) << "6 pairs are needed: " << r.describe();
 
   // A new session discards this one.
   r = c.postJson("/api/v1/calibration/session", json::object());
@@ -129,14 +142,28 @@ TEST(DaemonCalibrationSession, RefusalsNameWhatIsWrong) {
   EXPECT_EQ(session(c)["planes"].size(), 0u);
 }
 
+// Every `step`-th of `all`, from the first.
+std::vector<std::string> everyNth(const std::vector<std::string>& all, std::size_t step) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < all.size(); i += step)
+    out.push_back(all[i]);
+  return out;
+}
+
 TEST(DaemonCalibrationSession, TheHeadCalibratesItselfAndPassesTheCheck) {
   QuickDaemon daemon(DaemonSetup({}, /*calibrate=*/false));
   HttpClient& c = daemon.client();
-  const auto boards = calibrationScenes("board");
-  const auto planes = calibrationScenes("plane");
-  // The contract ships 40 boards and 14 planes for the virtual head.
-  ASSERT_GE(boards.size(), 40u);
-  ASSERT_GE(planes.size(), 14u);
+  // The board ships 96 boards (64 spread, then 32 tilted) and 14 planes. A
+  // third of the boards, spread and tilted ones alike, and every other plane
+  // keep this test to about a minute and still calibrate the quick head to
+  // a few hundredths of a mm (the page's test, web.browser_calibration,
+  // takes every target).
+  const auto all_boards = calibrationScenes("board");
+  const auto all_planes = calibrationScenes("plane");
+  ASSERT_EQ(all_boards.size(), 96u);
+  ASSERT_EQ(all_planes.size(), 14u);
+  const auto boards = everyNth(all_boards, 3);
+  const auto planes = everyNth(all_planes, 2);
   ASSERT_EQ(c.postJson("/api/v1/calibration/session", json::object()).status, 201);
 
   int found = 0;
@@ -171,7 +198,8 @@ TEST(DaemonCalibrationSession, TheHeadCalibratesItselfAndPassesTheCheck) {
   const json& result = s["result"];
   // Rendered corners at 320×256: a tenth of a pixel or so.
   EXPECT_LT(result["stereo_rms_px"].get<double>(), 0.5) << result.dump();
-  EXPECT_GE(result["boards_used"].get<int>(), 30) << result.dump();
+  // A few pairs may be dropped as reprojection outliers, no more.
+  EXPECT_GE(result["boards_used"].get<std::size_t>(), boards.size() - 4) << result.dump();
   // The quick fixture's own calibration reaches a few hundredths of a mm.
   EXPECT_LT(result["pooled_rmse_mm"].get<double>(), 0.2) << result.dump();
   for (const json& p : s["planes"])
