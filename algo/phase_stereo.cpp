@@ -8,11 +8,10 @@
 #include <opencv2/calib3d.hpp>
 
 #include "algo/map_sampling.hpp"
+#include "algo/numbers.hpp"
 
 namespace cylscan::algo {
 namespace {
-
-constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
 
 void checkPhaseMap(const cv::Mat& phase, cv::Size size, const char* name) {
   if (phase.type() != CV_32FC1 || phase.size() != size)

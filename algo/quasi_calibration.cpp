@@ -10,11 +10,10 @@
 
 #include <Eigen/Dense>
 
+#include "algo/numbers.hpp"
+
 namespace cylscan::algo {
 namespace {
-
-constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // ------------------------------------------------------------------ layout
 //

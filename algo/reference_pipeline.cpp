@@ -10,13 +10,12 @@
 #include <vector>
 
 #include "algo/neighbour_orders.hpp"
+#include "algo/numbers.hpp"
 #include "algo/order_residual.hpp"
 #include "algo/phase_pipeline.hpp"
 
 namespace cylscan::algo {
 namespace {
-
-constexpr double kTwoPi = 2 * std::numbers::pi;
 
 class ReferencePipeline final : public PhasePipeline {
  public:

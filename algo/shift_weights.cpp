@@ -8,10 +8,10 @@
 #include <numbers>
 #include <sstream>
 
+#include "algo/numbers.hpp"
+
 namespace cylscan::algo {
 namespace {
-
-constexpr double kTwoPi = 2 * std::numbers::pi;
 
 // Shifts closer than this (in turns) count as the same shift.
 constexpr double kSameShiftTurns = 1e-9;

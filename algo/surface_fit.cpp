@@ -9,10 +9,10 @@
 
 #include <Eigen/Dense>
 
+#include "algo/numbers.hpp"
+
 namespace cylscan::algo {
 namespace {
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // splitmix64: a tiny, fully specified generator, so a seed gives the same
 // hypotheses on every platform and standard library.

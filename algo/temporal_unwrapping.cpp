@@ -6,10 +6,10 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "algo/numbers.hpp"
+
 namespace cylscan::algo {
 namespace {
-
-constexpr double kTwoPi = 2 * std::numbers::pi;
 
 // k into [0, orders) for any integer k.
 int wrapOrder(int k, int orders) {

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "algo/numbers.hpp"
 #include "algo/surface_fit.hpp"
 #include "firmware/stopwatch.hpp"
 #include "formats/input_error.hpp"
@@ -13,7 +14,7 @@
 namespace cylscan::firmware {
 namespace {
 
-constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+using algo::kNaNf;
 // Below this many stereo points a pose's plane is not trusted.
 constexpr std::size_t kMinStereoPoints = 100;
 

@@ -15,6 +15,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "algo/numbers.hpp"
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
 
@@ -22,7 +23,7 @@ namespace cylscan::firmware {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+using algo::kNaNf;
 
 bool finite3(const cv::Vec3f& p) {
   return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);

@@ -109,7 +109,10 @@ std::vector<BoardPose> tiltedBoardPoses(const CameraModel& main, const CameraMod
     facing.col(0) = Vec3(0, 1, 0).cross(ahead).normalized();
     facing.col(1) = ahead.cross(facing.col(0));
     facing.col(2) = ahead;
-    const double azimuth = (135.0 * i + 11.0 * (i / 8)) * kDeg;
+    // Every eighth pose the azimuths step by 11° so that the 135° cycle does
+    // not repeat the same eight directions.
+    const int cycle = i / 8;
+    const double azimuth = (135.0 * i + 11.0 * cycle) * kDeg;
     const double tilt = (40 + 15 * std::fmod(i * 0.381966, 1.0)) * kDeg;
     const Mat3 r =
         facing *
