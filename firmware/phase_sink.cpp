@@ -14,6 +14,10 @@ algo::FringeSetGeometry PhaseSink::geometry(std::string_view camera, FringeSet s
   return {plan_.periodDeg(set), plan_.anglesDeg(camera, set)};
 }
 
+const algo::PhaseOptions& PhaseSink::options(std::string_view camera) const {
+  return this->camera(camera).engine.options();
+}
+
 PhaseSink::Camera& PhaseSink::camera(std::string_view name) {
   const auto it = cameras_.find(name);
   if (it == cameras_.end())

@@ -41,6 +41,8 @@ class PhaseSink final : public FrameSink {
   cv::Size frameSize(std::string_view camera) const;  // the size of its frames
   // The engines' working state, all cameras (O(K × pixels): no frame is kept).
   std::size_t workingStateBytes() const;
+  // A camera's engine options with every default resolved.
+  const algo::PhaseOptions& options(std::string_view camera) const;
   // The geometry a camera's engine uses (its own angles, the set's period).
   algo::FringeSetGeometry geometry(std::string_view camera, FringeSet set) const;
 

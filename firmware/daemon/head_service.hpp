@@ -163,6 +163,15 @@ class HeadService {
   // service is stopping.
   virtual std::unique_ptr<LiveStream> openLiveView(const LiveViewRequest& request) = 0;
 
+  // POST /api/v1/fringe-check: body null or {"scene"?}. A short scan of
+  // every camera at the head's settings; the future gives the figures of
+  // each (firmware/fringe_check.hpp) once taken, or throws the ServiceError
+  // (400 a bad body, 409 a scan or capture runs, 503 stopping or failed).
+  virtual std::future<nlohmann::json> fringeCheck(const nlohmann::json& body) = 0;
+  // GET /api/v1/fringe-check/{camera}.jpg: the last fringe check's picture
+  // of the camera (JPEG); ServiceError 404 when there is none.
+  virtual std::string fringePicture(std::string_view camera) const = 0;
+
   // POST /api/v1/checks: `request` is {"artifact": "sphere", "radius_mm": R,
   // "scene"?, "tolerance_mm"?}. Scans the artifact like any scan and
   // measures it; returns the check's id (the scan's). ServiceError 400 (the

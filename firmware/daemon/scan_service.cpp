@@ -289,9 +289,10 @@ std::string ScanService::newScanId(std::chrono::system_clock::time_point now) {
 json ScanService::stateJson() const {
   const std::string state = job_ ? "scanning" : last_error_ ? "error" : "idle";
   json out = {{"state", state},
-              {"scan", job_ && !job_->request.capture ? json(job_->record.id) : json(nullptr)}};
+              {"scan", job_ && job_->request.isScan() ? json(job_->record.id) : json(nullptr)}};
   if (job_ && job_->request.capture)
     out["capture"] = job_->request.capture->board_reply ? "calibration board" : "calibration plane";
+  if (job_ && job_->request.fringe_check) out["capture"] = "fringe check";
   return out;
 }
 
@@ -327,6 +328,7 @@ void ScanService::refuseUnlessIdleLocked() const {
 
 std::string ScanService::busyMessageLocked() const {
   if (job_->request.capture) return "a calibration capture is " + toString(job_->record.state);
+  if (job_->request.fringe_check) return "a fringe check is " + toString(job_->record.state);
   return "scan " + job_->record.id + " is " + toString(job_->record.state);
 }
 
@@ -384,7 +386,7 @@ void ScanService::worker() {
         job = job_.get();
         job->record.state = ScanState::kRunning;
         job->started = Clock::now();
-        if (!job->request.capture) events_.publish("scan", job->record);
+        if (job->request.isScan()) events_.publish("scan", job->record);
         if (job->check) {
           job->check->state = "running";
           events_.publish("check", *job->check);
@@ -403,6 +405,8 @@ void ScanService::worker() {
       live_.end(409, "a scan started");
       if (job->request.capture) {
         runSessionCapture(*job);
+      } else if (job->request.fringe_check) {
+        runFringeCheck(*job);
       } else {
         runJob(*job);  // ends with finishLocked()
       }

@@ -99,6 +99,8 @@ class ScanService final : public HeadService {
   nlohmann::json setCameraControls(std::string_view camera,
                                    const nlohmann::json& controls) override;
   std::unique_ptr<LiveStream> openLiveView(const LiveViewRequest& request) override;
+  std::future<nlohmann::json> fringeCheck(const nlohmann::json& body) override;
+  std::string fringePicture(std::string_view camera) const override;
   std::string startCheck(const nlohmann::json& request) override;
   nlohmann::json listChecks() const override;
   nlohmann::json startSession(const nlohmann::json& body) override;
@@ -143,6 +145,9 @@ class ScanService final : public HeadService {
   void failCheck(Job& job, const std::string& error);
   // Adds a finished check to the history, the job and the event stream.
   void keepCheck(Job& job, const CheckRecord& check);
+
+  // The fringe check (firmware/daemon/scan_service_fringes.cpp), on the worker.
+  void runFringeCheck(Job& job);
 
   // The calibration session (firmware/daemon/scan_service_session.cpp).
   void loadSession();
@@ -217,6 +222,7 @@ class ScanService final : public HeadService {
   std::map<std::string, drivers::CameraControls, std::less<>> camera_controls_;  // as applied
   std::mutex settings_file_mutex_;  // one writer of cameras.json at a time
   LiveHub live_;
+  std::map<std::string, std::string, std::less<>> fringe_pictures_;  // mutex_; JPEG by camera
   std::shared_ptr<CalibrationSession> session_;  // mutex_ (the pointer; the session locks itself)
   std::thread solve_thread_;                     // the last solve's; joined by the next and stop()
   std::chrono::steady_clock::time_point last_live_capture_{};  // the worker's

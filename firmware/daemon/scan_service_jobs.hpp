@@ -23,6 +23,9 @@ namespace cylscan::firmware {
 std::string isoTime(std::chrono::system_clock::time_point t);
 // GET /api/v1/calibration's answer for an installed calibration.
 nlohmann::json calibrationInfoJson(const algo::QuasiCalibration& calib, std::uintmax_t bytes);
+// The `scene` of a capture's body (null or an object with no other key);
+// ServiceError 400 naming what is wrong.
+std::optional<std::string> sceneOf(const nlohmann::json& body);
 
 // A capture of the calibration session, taken by the worker like a scan but
 // kept in the session instead of the scan store.
@@ -31,6 +34,11 @@ struct SessionCapture {
   // A checkerboard pair: its answer, once taken. Null for a plane pose.
   std::shared_ptr<std::promise<nlohmann::json>> board_reply;
   int plane_index = -1;  // a plane pose: its index in the session
+};
+
+// A fringe check, taken by the worker like a scan; its answer once taken.
+struct FringeCheckCapture {
+  std::shared_ptr<std::promise<nlohmann::json>> reply;
 };
 
 struct ScanService::Request {
@@ -43,6 +51,10 @@ struct ScanService::Request {
   int frames_total = 0;
   std::optional<CheckRecord> check;       // the scan is a check of this artifact
   std::optional<SessionCapture> capture;  // not a scan: a capture of the calibration session
+  std::optional<FringeCheckCapture> fringe_check;  // not a scan: a fringe check
+
+  // A scan kept in the store (not a capture or a fringe check).
+  bool isScan() const { return !capture && !fringe_check; }
 };
 
 struct ScanService::Job {

@@ -70,15 +70,6 @@ class FrameMeanSink final : public FrameSink {
   std::map<std::string, Mean, std::less<>> means_;
 };
 
-std::optional<std::string> sceneOf(const json& body) {
-  if (!body.is_object()) throw ServiceError(400, "the body must be a JSON object");
-  for (const auto& [key, value] : body.items())
-    if (key != "scene") throw ServiceError(400, key + ": not an option of a capture (scene)");
-  if (!body.contains("scene")) return std::nullopt;
-  if (!body.at("scene").is_string()) throw ServiceError(400, "scene: must be a string");
-  return body.at("scene").get<std::string>();
-}
-
 formats::CheckerboardInfo boardOf(const json& body) {
   formats::CheckerboardInfo board{9, 6, 12.0};  // the virtual head's target
   if (body.is_null()) return board;
@@ -105,6 +96,15 @@ formats::CheckerboardInfo boardOf(const json& body) {
 }
 
 }  // namespace
+
+std::optional<std::string> sceneOf(const json& body) {
+  if (!body.is_object()) throw ServiceError(400, "the body must be a JSON object");
+  for (const auto& [key, value] : body.items())
+    if (key != "scene") throw ServiceError(400, key + ": not an option of a capture (scene)");
+  if (!body.contains("scene")) return std::nullopt;
+  if (!body.at("scene").is_string()) throw ServiceError(400, "scene: must be a string");
+  return body.at("scene").get<std::string>();
+}
 
 void ScanService::loadSession() {
   const auto& main = profile_.camera("main").config;

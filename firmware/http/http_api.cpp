@@ -196,7 +196,10 @@ struct ApiServer {
                          const char* content_type, std::size_t block_size,
                          const std::function<void(SseClient&)>& open);
   MHD_Result startSnapshot(MHD_Connection* c, Request& r);
-  MHD_Result startBoardCapture(MHD_Connection* c, Request& r);
+  // Suspends the request until the head answers `start`'s future (a
+  // checkerboard pair, a fringe check), then answers `status` with it.
+  MHD_Result startCapture(MHD_Connection* c, Request& r, int status,
+                          const std::function<std::future<json>()>& start);
   MHD_Result suspend(MHD_Connection* c, Request& r, std::shared_ptr<PendingReply> pending);
   void servePending();
   void serveLive(SseClient& client, Clock::time_point now);
@@ -507,7 +510,14 @@ MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* met
   if (r.route.endpoint == http::Endpoint::CameraStream && r.method == "GET")
     return startLiveView(c, r);
   if (r.route.endpoint == http::Endpoint::CameraSnapshot) return startSnapshot(c, r);
-  if (r.route.endpoint == http::Endpoint::CalibrationBoards) return startBoardCapture(c, r);
+  if (r.route.endpoint == http::Endpoint::CalibrationBoards) {
+    return startCapture(c, r, 201,
+                        [&] { return service.captureBoard(bodyObject(r.body, json::object())); });
+  }
+  if (r.route.endpoint == http::Endpoint::FringeCheck) {
+    return startCapture(c, r, 200,
+                        [&] { return service.fringeCheck(bodyObject(r.body, json::object())); });
+  }
   return answer(c, r, dispatch(c, r));
 }
 
@@ -774,8 +784,15 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       reply.headers.emplace_back(MHD_HTTP_HEADER_LOCATION, "/api/v1/calibration/session");
       return reply;
     }
-    case Endpoint::CalibrationBoards:  // answered by startBoardCapture
+    case Endpoint::CalibrationBoards:  // answered by startCapture
+    case Endpoint::FringeCheck:
       return errorReply(500, "internal error: a capture was not suspended");
+    case Endpoint::FringePicture: {
+      Reply reply;
+      reply.content_type = "image/jpeg";
+      reply.body = service.fringePicture(r.route.name);
+      return reply;
+    }
     case Endpoint::CalibrationPlanes:
       return jsonReply(202, service.capturePlane(bodyObject(r.body, json::object())));
     case Endpoint::CalibrationSolve:
@@ -969,14 +986,15 @@ MHD_Result ApiServer::suspend(MHD_Connection* c, Request& r,
   return MHD_YES;
 }
 
-// Queues one checkerboard pair and suspends the request until the head has
-// taken it (a scan plan's frames: seconds, too long to hold a thread).
-MHD_Result ApiServer::startBoardCapture(MHD_Connection* c, Request& r) {
+// A capture is a scan plan's frames: seconds, too long to hold a thread.
+MHD_Result ApiServer::startCapture(MHD_Connection* c, Request& r, int status,
+                                   const std::function<std::future<json>()>& start) {
   auto pending = std::make_shared<PendingReply>();
   pending->connection = c;
+  pending->answer_status = status;
   pending->deadline = Clock::now() + kCaptureTimeout;
   try {
-    pending->answer = service.captureBoard(bodyObject(r.body, json::object()));
+    pending->answer = start();
   } catch (const ServiceError& e) {
     return answer(c, r, errorReply(e.httpStatus(), e.what()));
   } catch (const std::exception& e) {

@@ -145,6 +145,18 @@ Route route(std::string_view method, std::string_view path) {
     if (what == "checks" && s.size() == 3) {
       return withMethods(Endpoint::Checks, method, true, true, false, false);
     }
+    if (what == "fringe-check" && s.size() == 3) {
+      return withMethods(Endpoint::FringeCheck, method, false, true, false, false);
+    }
+    if (what == "fringe-check" && s.size() == 4) {
+      Route r = withMethods(Endpoint::FringePicture, method, true, false, false, false);
+      const std::string_view file = s[3];
+      if (r.status != 0) return r;
+      if (!file.ends_with(".jpg"))
+        return parameterNotFound(
+            std::move(r), "no such picture: " + std::string(file) + " (fringe-check/<camera>.jpg)");
+      return withCamera(std::move(r), file.substr(0, file.size() - 4));
+    }
     if (what == "events" && s.size() == 3) {
       return withMethods(Endpoint::Events, method, true, false, false, false);
     }

@@ -34,6 +34,8 @@ enum class Endpoint {
   CameraSnapshot,       // /api/v1/cameras/{name}/snapshot.jpg
   CameraStream,         // /api/v1/cameras/{name}/stream.mjpg
   Checks,               // /api/v1/checks
+  FringeCheck,          // /api/v1/fringe-check
+  FringePicture,        // /api/v1/fringe-check/{camera}.jpg (name = the camera)
   Events,               // /api/v1/events
   Metrics,              // /metrics
   Static,               // anything else outside /api/: a file under web_root

@@ -133,6 +133,9 @@ class FakeService : public firmware::HeadService {
   std::optional<json> session_json;
   json last_session_body;
   json board_reply = json{{"index", 0}, {"found", {{"main", true}, {"aux", true}}}};
+  json last_fringe_body;
+  json fringe_reply = json{{"frames", 8}, {"cameras", json::array()}};
+  std::map<std::string, std::string> fringe_pictures;
   std::optional<firmware::ServiceError> session_error;
   bool hold_board = false;  // the board capture's answer waits for board_promise
   std::shared_ptr<std::promise<json>> board_promise;
@@ -261,6 +264,22 @@ class FakeService : public firmware::HeadService {
     ++board_captures;
     if (!hold_board) board_promise->set_value(board_reply);
     return board_promise->get_future();
+  }
+  // The fringe check answers with fringe_reply, or throws camera_error;
+  // its pictures are fringe_pictures by camera (404 for any other).
+  std::future<json> fringeCheck(const json& body) override {
+    std::lock_guard lock(mutex);
+    last_fringe_body = body;
+    if (camera_error) throw *camera_error;
+    std::promise<json> promise;
+    promise.set_value(fringe_reply);
+    return promise.get_future();
+  }
+  std::string fringePicture(std::string_view camera) const override {
+    std::lock_guard lock(mutex);
+    const auto it = fringe_pictures.find(std::string(camera));
+    if (it == fringe_pictures.end()) throw firmware::ServiceError(404, "no fringe check");
+    return it->second;
   }
   json capturePlane(const json& body) override {
     std::lock_guard lock(mutex);

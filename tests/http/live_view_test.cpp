@@ -92,6 +92,34 @@ TEST_F(LiveViewTest, PatchPassesTheControlsAndItsRefusals) {
   EXPECT_EQ(curlRequest("GET", url("/api/v1/cameras/main/other.jpg"), authed()).status, 404);
 }
 
+TEST_F(LiveViewTest, FringeCheckPassesItsAnswerAndPictures) {
+  service.fringe_reply = json{{"frames", 8}, {"cameras", json::array({{{"name", "main"}}})}};
+  service.fringe_pictures["main"] = "\xff\xd8 not really a JPEG";
+  EXPECT_EQ(curlRequest("POST", url("/api/v1/fringe-check")).status, 401);
+  auto r = curlRequest("POST", url("/api/v1/fringe-check"), authed(R"({"scene": "s.toml"})"));
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.bodyJson(), service.fringe_reply);
+  EXPECT_EQ(service.last_fringe_body, json({{"scene", "s.toml"}}));
+  // No body is an empty one.
+  r = curlRequest("POST", url("/api/v1/fringe-check"), authed(""));
+  EXPECT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(service.last_fringe_body, json::object());
+
+  r = curlRequest("GET", url("/api/v1/fringe-check/main.jpg"), authed());
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.header("content-type"), "image/jpeg");
+  EXPECT_EQ(r.body, service.fringe_pictures["main"]);
+  EXPECT_EQ(curlRequest("GET", url("/api/v1/fringe-check/main.jpg")).status, 401);
+  EXPECT_EQ(curlRequest("GET", url("/api/v1/fringe-check/aux.jpg"), authed()).status, 404);
+
+  service.camera_error = ServiceError(409, "scan x is running");
+  r = curlRequest("POST", url("/api/v1/fringe-check"), authed("{}"));
+  EXPECT_EQ(r.status, 409);
+  EXPECT_NE(r.body.find("scan x is running"), std::string::npos) << r.body;
+  r = curlRequest("POST", url("/api/v1/fringe-check"), authed("{not json"));
+  EXPECT_EQ(r.status, 400) << r.body;
+}
+
 TEST_F(LiveViewTest, SnapshotWaitsForItsPicture) {
   auto s = rawGet("/api/v1/cameras/aux/snapshot.jpg?overlay=saturation");
   auto f = feed();

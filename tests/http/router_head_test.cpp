@@ -58,5 +58,25 @@ TEST(RouterHead, EveryNameABoardMayGiveACameraIsRouted) {
   EXPECT_EQ(route("GET", "/api/v1/calibration/cam.90").param_status, 404);
 }
 
+// The fringe check of the set-up page: POST runs it, GET its pictures by
+// camera; the camera names follow the board's rule as everywhere.
+TEST(RouterHead, FringeCheckAndItsPictures) {
+  EXPECT_EQ(route("POST", "/api/v1/fringe-check").endpoint, Endpoint::FringeCheck);
+  EXPECT_EQ(route("POST", "/api/v1/fringe-check").status, 0);
+  const Route get = route("GET", "/api/v1/fringe-check");
+  EXPECT_EQ(get.status, 405);
+  EXPECT_EQ(get.allow, "POST");
+  const Route picture = route("GET", "/api/v1/fringe-check/cam_90.jpg");
+  EXPECT_EQ(picture.endpoint, Endpoint::FringePicture);
+  EXPECT_EQ(picture.param_status, 0) << picture.error;
+  EXPECT_EQ(picture.name, "cam_90");
+  EXPECT_EQ(route("POST", "/api/v1/fringe-check/main.jpg").status, 405);
+  for (const char* file : {"main", "main.png", ".jpg", "cam.90.jpg"})
+    EXPECT_EQ(route("GET", std::string("/api/v1/fringe-check/") + file).param_status, 404) << file;
+  EXPECT_EQ(route("GET", "/api/v1/fringe-check/main/x.jpg").status, 404);
+  EXPECT_TRUE(needsToken(Endpoint::FringeCheck));
+  EXPECT_TRUE(needsToken(Endpoint::FringePicture));
+}
+
 }  // namespace
 }  // namespace cylscan::firmware::http
