@@ -124,6 +124,9 @@ void ScanService::requireTwoCameras() const {
 json ScanService::startSession(const json& body) {
   const formats::CheckerboardInfo board = boardOf(body);
   requireTwoCameras();
+  // The answer is the session as GET gives it, with the virtual head's targets.
+  std::optional<json> targets;
+  if (profile_.sim) targets = calibrationTargets();
   std::lock_guard lock(mutex_);
   if (stopping_) throw ServiceError(503, "the daemon is stopping");
   if (job_ && job_->request.capture)
@@ -137,6 +140,7 @@ json ScanService::startSession(const json& body) {
   logInfo("calibration session started");
   json out = session_->describe();
   events_.publish("calibration", out);
+  if (targets) out["targets"] = std::move(*targets);
   return out;
 }
 

@@ -74,6 +74,9 @@ TEST(DaemonCalibrationSession, RefusalsNameWhatIsWrong) {
   r = c.postJson("/api/v1/calibration/session", json::object());
   ASSERT_EQ(r.status, 201) << r.describe();
   EXPECT_EQ(r.json()["state"], "capturing");
+  // The answer is the session as GET gives it, the virtual head's targets too.
+  EXPECT_EQ(r.json(), session(c));
+  EXPECT_EQ(r.json()["targets"]["boards"], json(calibrationScenes("board")));
 
   r = c.postJson("/api/v1/calibration/session/boards", json{{"scene", "no_such.toml"}});
   EXPECT_EQ(r.status, 400) << r.describe();
