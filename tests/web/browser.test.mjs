@@ -3,9 +3,9 @@
 // fixture board, installs the fixture's calibration, opens the page in
 // Debian's chromium (driven by playwright-core, no browser download), clicks
 // Scan, waits for live progress and for the 3D viewer to show the cloud,
-// drives the Set-up view (the cameras' live views and settings, then a check
-// against the scene's sphere), and checks that nothing failed on the way and
-// that the viewer drew something.
+// drives the Set-up view (the cameras' live views and settings, a fringe
+// check of the exposure, then a check against the scene's sphere), and checks
+// that nothing failed on the way and that the viewer drew something.
 //
 // With --flow calibration it takes an uncalibrated head through its whole
 // calibration from the page alone instead (runCalibration below): the live
@@ -514,6 +514,8 @@ async function checkSetupView(page, base, { problems, expected }) {
   });
   if (restored.status !== 200) fail(`PATCH /api/v1/cameras/main back to ${original.value} µs: ${restored.status} ${restored.body}`);
 
+  await checkFringeCheck(page, { api, cameras, original: original.value, problems });
+
   // A scan pauses the live view, plainly; the head idle again, it comes back.
   // The quick head scans in under a second: what the page showed meanwhile is
   // recorded in the page rather than polled.
@@ -548,6 +550,117 @@ async function checkSetupView(page, base, { problems, expected }) {
   await page.click('#scan-tab');
   await page.waitForTimeout(500);
   if (streams.size > 0) problems.push(`${streams.size} live stream(s) still open once the set-up view was left`);
+}
+
+// The fringe check (docs/http-api.md, "Fringe check"), clicked in the set-up
+// view: at the fixture's exposure every camera's advice is "right", shown in
+// words with its picture (at the camera's resolution) and a plausible usable
+// share; main at 2 ms, typed into its card, is "raise". The button is
+// disabled and says "checking…" while the check runs, the live views say
+// they are paused meanwhile and come back. Main's exposure is set back to
+// `original` µs for the steps that follow.
+async function checkFringeCheck(page, { api, cameras, original, problems }) {
+  const card = '[data-camera="main"]';
+  const entry = `${card} input[name=exposure_us_entry]`;
+  await page.evaluate(() => {
+    const button = document.getElementById('fringe-check-button');
+    const message = document.getElementById('fringe-check-message');
+    const paused = document.getElementById('live-paused');
+    const seen = (window.cylscanFringeSeen = new Set());
+    new MutationObserver(() => {
+      if (button.disabled) seen.add('disabled');
+      if (message.textContent) seen.add(message.textContent);
+      if (!paused.hidden) seen.add(paused.textContent.trim());
+    }).observe(document.getElementById('setup-view'), { subtree: true, childList: true, characterData: true, attributes: true });
+  });
+  // One check from the page: the daemon's answer and what the page shows of it.
+  const check = async () => {
+    await page.waitForSelector('#fringe-check-button:not([disabled])', { timeout: 15_000 });
+    const posted = page.waitForResponse((r) => r.request().method() === 'POST' && /\/api\/v1\/fringe-check$/.test(r.url()), { timeout: 30_000 });
+    const clicked = Date.now();
+    await page.click('#fringe-check-button');
+    const response = await posted;
+    if (response.status() !== 200) fail(`POST /api/v1/fringe-check from the page: ${response.status()} ${await response.text()}`);
+    const answer = await response.json();
+    await page.waitForSelector('#fringe-check:is([data-state="done"], [data-state="failed"])', { timeout: 15_000 });
+    if ((await page.getAttribute('#fringe-check', 'data-state')) !== 'done') fail(`the fringe check failed: ${await page.textContent('#fringe-check-message')}`);
+    const names = answer.cameras.map((camera) => camera.name);
+    await page.waitForFunction(
+      (n) => n.every((name) => document.querySelector(`[data-fringe-camera="${name}"] img`)?.naturalWidth > 0),
+      names,
+      { timeout: 15_000 },
+    );
+    const shown = await page.evaluate((n) => Object.fromEntries(n.map((name) => {
+      const node = document.querySelector(`[data-fringe-camera="${name}"]`);
+      const figures = Object.fromEntries([...node.querySelectorAll('[data-figure]')].map((dd) => [dd.dataset.figure, dd.textContent]));
+      const img = node.querySelector('img');
+      return [name, {
+        advice: node.dataset.advice,
+        text: node.querySelector('.fringe-advice').textContent,
+        visible: node.querySelector('.fringe-advice').checkVisibility() && img.checkVisibility(),
+        width: img.naturalWidth,
+        height: img.naturalHeight,
+        figures,
+      }];
+    })), names);
+    log(`fringe check shown after ${Date.now() - clicked} ms: ${JSON.stringify(shown)}`);
+    return { answer, shown };
+  };
+
+  const { answer, shown } = await check();
+  const names = answer.cameras.map((camera) => camera.name);
+  if (names.join() !== cameras.map((camera) => camera.name).join()) problems.push(`the fringe check's cameras ${names} for cameras ${cameras.map((c) => c.name)}`);
+  for (const camera of cameras) {
+    const measured = answer.cameras.find((c) => c.name === camera.name);
+    const onPage = shown[camera.name];
+    if (!measured || !onPage) {
+      problems.push(`no fringe check of ${camera.name} shown (daemon: ${JSON.stringify(measured)})`);
+      continue;
+    }
+    if (measured.advice !== 'right') problems.push(`the daemon advises "${measured.advice}" for ${camera.name} at the fixture's exposure: ${JSON.stringify(measured)}`);
+    if (onPage.advice !== measured.advice || onPage.text !== 'Exposure right for scanning' || !onPage.visible) {
+      problems.push(`${camera.name}'s fringe advice shown: "${onPage.text}" (${onPage.advice}, visible: ${onPage.visible}), the daemon's "${measured.advice}"`);
+    }
+    if (onPage.width !== camera.width || onPage.height !== camera.height) {
+      problems.push(`${camera.name}'s fringe picture is ${onPage.width} × ${onPage.height}, the camera ${camera.width} × ${camera.height}`);
+    }
+    const usable = Number.parseFloat(onPage.figures.usable);
+    if (!(usable > 50)) problems.push(`${camera.name}'s usable share shown is "${onPage.figures.usable}" (want > 50 %)`);
+    if (!(Math.abs(usable - measured.usable * 100) < 0.1)) problems.push(`${camera.name}'s usable share shown is "${onPage.figures.usable}", the daemon's ${measured.usable}`);
+    for (const key of ['saturated', 'peak', 'modulation']) {
+      if (!onPage.figures[key] || onPage.figures[key].startsWith('–')) problems.push(`${camera.name}'s fringe figure ${key} is not shown`);
+    }
+  }
+  const seen = await page.evaluate(() => [...window.cylscanFringeSeen]);
+  if (!seen.includes('disabled') || !seen.includes('checking…')) problems.push(`the fringe check button was not disabled with "checking…" while it ran (seen: ${seen.join(' | ')})`);
+  if (!seen.includes('Live view paused: checking the fringes')) problems.push(`the live view's pause was not shown during the fringe check (seen: ${seen.join(' | ')})`);
+
+  // Main too dark, as typed into its card: the advice turns to "raise".
+  const setExposure = async (us) => {
+    await page.fill(entry, String(us));
+    await page.press(entry, 'Enter');
+    for (let i = 0; ; i++) {
+      const value = (await api('cameras')).json().find((camera) => camera.name === 'main').controls.exposure_us.value;
+      if (value === us) break;
+      if (i === 50) fail(`main's exposure typed in as ${us} µs is ${value} µs at the daemon`);
+      await page.waitForTimeout(100);
+    }
+  };
+  await setExposure(2000);
+  const dark = await check();
+  const darkMain = dark.answer.cameras.find((camera) => camera.name === 'main');
+  log(`fringe check of main at 2 ms: ${JSON.stringify(darkMain)}`);
+  if (darkMain?.exposure_us !== 2000) problems.push(`the fringe check was taken at ${darkMain?.exposure_us} µs, not the 2000 µs typed in`);
+  if (darkMain?.advice !== 'raise' || dark.shown.main?.advice !== 'raise' || dark.shown.main?.text !== 'Too dark: raise the exposure') {
+    problems.push(`main at 2 ms: the daemon advises "${darkMain?.advice}", the page shows "${dark.shown.main?.text}"`);
+  }
+  await setExposure(original);
+
+  // The live view paused during the checks and is back.
+  await page.waitForSelector('#live-paused', { state: 'hidden', timeout: 15_000 });
+  const resumed = await page.$eval(`${card} .live`, (live) => Number(live.dataset.frames));
+  await page.waitForFunction(([s, n]) => Number(document.querySelector(`${s} .live`).dataset.frames) > n + 2, [card, resumed], { timeout: 15_000 });
+  log('the live view paused during the fringe checks and came back');
 }
 
 // The checks against a known artifact (docs/http-api.md), from the page

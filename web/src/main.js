@@ -2,14 +2,16 @@
 // The page of cylscand, in two views. Scan: head status, the Scan button, live
 // progress, the stored scans and, for the selected one, its previews and point
 // cloud. Set-up: each camera's live picture and settings (setup.js), the
-// calibration session (calibration.js), and the checks against a known
-// artifact with their history (checks.js).
+// fringe check of their exposure (fringe_check.js), the calibration session
+// (calibration.js), and the checks against a known artifact with their
+// history (checks.js).
 
 import './app.css';
 import { ApiError, getBlob, getBytes, getJson, onAuthNeeded, postJson, remove, setToken, token } from './api.js';
 import { CalibrationView } from './calibration.js';
 import { ChecksView } from './checks.js';
 import { connectEvents } from './events.js';
+import { FringeCheckView } from './fringe_check.js';
 import { SetupView } from './setup.js';
 import { PointCloudViewer } from './viewer.js';
 
@@ -75,6 +77,7 @@ function showState(value, capture = null) {
   $('scan-button').disabled = value === 'scanning';
   if (setup && value) setup.setHeadState(value, state.capture);
   if (checks && value) checks.setHeadState(value);
+  if (fringeCheck && value) fringeCheck.setHeadState(value);
   if (calibration && value) calibration.setHeadState(value);
 }
 
@@ -404,6 +407,7 @@ function onConnection(what, detail) {
 
 let setup = null;
 let checks = null;
+let fringeCheck = null;
 let calibration = null;
 const VIEWS = { scan: { tab: 'scan-tab', panel: 'scan-view' }, setup: { tab: 'setup-tab', panel: 'setup-view' } };
 
@@ -476,6 +480,10 @@ function setupToken() {
 function main() {
   setup = new SetupView($('setup-view'));
   checks = new ChecksView($('checks'));
+  fringeCheck = new FringeCheckView($('fringe-check'), {
+    holdLive: (kind) => setup.holdLive(kind),
+    releaseLive: () => setup.releaseLive(),
+  });
   calibration = new CalibrationView($('calibration'), {
     holdLive: (kind) => setup.holdLive(kind),
     releaseLive: () => setup.releaseLive(),

@@ -15,13 +15,14 @@ const SLIDER_STEPS = 1000;
 const SATURATED_LIMIT = 0.001;
 
 const PAUSED_TEXT = 'Live view paused: a scan is running';
-// While the head captures for the calibration session (status `capture`, or
-// a capture this page is about to ask for).
+// While the head captures for the calibration session or checks the fringes
+// (status `capture`, or a capture this page is about to ask for).
 const CAPTURE_PAUSED_TEXT = {
   board: 'Live view paused: taking a calibration board pair',
   plane: 'Live view paused: scanning a calibration plane pose',
+  fringe: 'Live view paused: checking the fringes',
 };
-const CAPTURE_KIND = { 'calibration board': 'board', 'calibration plane': 'plane' };
+const CAPTURE_KIND = { 'calibration board': 'board', 'calibration plane': 'plane', 'fringe check': 'fringe' };
 
 function element(tag, props = {}, children = []) {
   const node = document.createElement(tag);
@@ -64,7 +65,7 @@ export function formatExposure(us) {
   return `${Number((us / 1e6).toPrecision(3))} s`;
 }
 
-function formatGain(gain) {
+export function formatGain(gain) {
   return Number.isFinite(gain) ? String(Number(gain.toPrecision(4))) : '–';
 }
 
@@ -73,7 +74,7 @@ function formatFocus(focus) {
   return focus >= 1000 ? Math.round(focus).toLocaleString() : String(Number(focus.toPrecision(4)));
 }
 
-function formatFraction(fraction) {
+export function formatFraction(fraction) {
   if (!Number.isFinite(fraction)) return '–';
   const percent = fraction * 100;
   return `${percent === 0 ? '0' : percent < 0.01 ? '< 0.01' : Number(percent.toPrecision(3))} %`;
@@ -447,7 +448,8 @@ export class SetupView {
   }
 
   // The head's state ('idle', 'scanning', 'error') and, while it captures for
-  // the calibration session, the status' `capture`: no live view meanwhile.
+  // the calibration session or checks the fringes, the status' `capture`: no
+  // live view meanwhile.
   setHeadState(state, capture = null) {
     const scanning = state === 'scanning';
     const kind = scanning ? CAPTURE_KIND[capture] ?? null : null;
@@ -458,8 +460,8 @@ export class SetupView {
     this.applyPause(was, text);
   }
 
-  // A capture this page is about to ask for: the live views close their
-  // streams now rather than have the daemon cut them.
+  // A capture this page is about to ask for ('board', 'plane', 'fringe'): the
+  // live views close their streams now rather than have the daemon cut them.
   holdLive(kind) {
     const was = this.livePaused();
     const text = this.pausedText();
