@@ -14,6 +14,11 @@ export class ApiError extends Error {
 let authNeeded = () => {};
 
 // `handler` is called whenever the daemon answers 401.
+// Whether `error` is the head's answer with HTTP `status`.
+export function isStatus(error, status) {
+  return error instanceof ApiError && error.status === status;
+}
+
 export function onAuthNeeded(handler) {
   authNeeded = handler;
 }

@@ -12,7 +12,7 @@
 // closes them itself before it asks for one (setup.js holdLive), so that no
 // stream is refused mid-way, and they come back once the head is idle.
 
-import { ApiError, getJson, postJson, request } from './api.js';
+import { getJson, isStatus, postJson, request } from './api.js';
 import {
   describeCalibration,
   formatMm,
@@ -29,19 +29,12 @@ import {
   takenScenes,
   targetLabel,
 } from './calibration_model.js';
+import { element } from './dom.js';
 
 // While a plane pose is scanned its end comes as a `calibration` event; the
 // session is also read this often, in case the event stream is down.
 const PLANE_POLL_MS = 3000;
 
-function element(tag, props = {}, children = []) {
-  const node = document.createElement(tag);
-  Object.assign(node, props);
-  for (const child of children) node.append(child);
-  return node;
-}
-
-const isStatus = (error, status) => error instanceof ApiError && error.status === status;
 const capitalized = (text) => text.charAt(0).toUpperCase() + text.slice(1);
 
 async function post(path) {

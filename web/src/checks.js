@@ -7,18 +7,12 @@
 // calibration shows at a glance. Refreshed by the event stream's `check`
 // events; the plot's geometry is checks_plot.js.
 
-import { ApiError, getJson, postJson } from './api.js';
+import { getJson, isStatus, postJson } from './api.js';
 import { checksPlot, formatSigned, radiusError } from './checks_plot.js';
+import { element } from './dom.js';
 
 const SVG = 'http://www.w3.org/2000/svg';
 const PLOT = { width: 640, height: 200 };
-
-function element(tag, props = {}, children = []) {
-  const node = document.createElement(tag);
-  Object.assign(node, props);
-  for (const child of children) node.append(child);
-  return node;
-}
 
 function svg(tag, attributes = {}, children = []) {
   const node = document.createElementNS(SVG, tag);
@@ -117,8 +111,8 @@ export class ChecksView {
         if (this.message.dataset.from === 'load') this.say('');
       } catch (error) {
         this.message.dataset.from = 'load';
-        if (error instanceof ApiError && error.status === 401) this.say('A token is needed to see the checks.', 'muted');
-        else if (error instanceof ApiError && error.status === 404) {
+        if (isStatus(error, 401)) this.say('A token is needed to see the checks.', 'muted');
+        else if (isStatus(error, 404)) {
           this.say(`This head offers no checks (${error.message}).`, 'error');
         } else this.say(`Checks: ${error.message}`, 'error');
       } finally {
@@ -194,7 +188,7 @@ export class ChecksView {
       this.refresh();
     } catch (error) {
       // The daemon's words: not calibrated, busy, a value out of range.
-      if (error instanceof ApiError && error.status === 401) this.say('A token is needed to run a check.', 'warn');
+      if (isStatus(error, 401)) this.say('A token is needed to run a check.', 'warn');
       else this.say(`Check refused: ${error.message}`, 'error');
     } finally {
       this.starting = false;

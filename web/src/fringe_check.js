@@ -10,8 +10,9 @@
 // before it asks (setup.js holdLive), so that no stream is cut or refused
 // mid-way, and they come back once the head is idle.
 
-import { ApiError, getBlob, postJson } from './api.js';
+import { ApiError, getBlob, isStatus, postJson } from './api.js';
 import { formatExposure, formatFraction, formatGain } from './setup.js';
+import { element } from './dom.js';
 
 const ADVICE_TEXT = {
   right: 'Exposure right for scanning',
@@ -19,14 +20,6 @@ const ADVICE_TEXT = {
   lower: 'Saturated: lower the exposure',
 };
 
-function element(tag, props = {}, children = []) {
-  const node = document.createElement(tag);
-  Object.assign(node, props);
-  for (const child of children) node.append(child);
-  return node;
-}
-
-const isStatus = (error, status) => error instanceof ApiError && error.status === status;
 
 function formatCounts(counts) {
   return Number.isFinite(counts) ? `${Number(counts.toPrecision(3))} counts` : '–';

@@ -13,7 +13,7 @@
 // that ends or fails while the head is idle is opened again after a growing,
 // jittered wait.
 
-import { ApiError, request } from './api.js';
+import { isStatus, request } from './api.js';
 import { MultipartParser, boundaryOf } from './multipart.js';
 
 const MIN_DELAY_MS = 1000;
@@ -153,7 +153,7 @@ export class LiveView {
           continue;
         }
         if (Date.now() - opened > HEALTHY_MS) this.delay = MIN_DELAY_MS;
-        if (outcome instanceof ApiError && outcome.status === 401) {
+        if (isStatus(outcome, 401)) {
           this.status('unauthorized');
           await this.wait(Infinity);
           continue;
@@ -161,7 +161,7 @@ export class LiveView {
         if (this.scanning) continue;
         const wait = this.delay * (0.75 + Math.random() * 0.5);
         this.delay = Math.min(this.delay * 2, MAX_DELAY_MS);
-        if (outcome instanceof ApiError && outcome.status === 409) {
+        if (isStatus(outcome, 409)) {
           // A scan runs that the event stream has not told of yet (or it is
           // down): paused, and asked again after the wait unless an idle
           // state event comes first.

@@ -7,13 +7,14 @@
 // history (checks.js).
 
 import './app.css';
-import { ApiError, getBlob, getBytes, getJson, onAuthNeeded, postJson, remove, setToken, token } from './api.js';
+import { getBlob, getBytes, getJson, isStatus, onAuthNeeded, postJson, remove, setToken, token } from './api.js';
 import { CalibrationView } from './calibration.js';
 import { ChecksView } from './checks.js';
 import { connectEvents } from './events.js';
 import { FringeCheckView } from './fringe_check.js';
 import { SetupView } from './setup.js';
 import { PointCloudViewer } from './viewer.js';
+import { element } from './dom.js';
 
 const $ = (id) => document.getElementById(id);
 const DOWNLOADS = ['cloud.ply', 'depth.tiff', 'texture.png'];
@@ -51,14 +52,7 @@ function formatTime(iso) {
   return Number.isNaN(date.getTime()) ? iso : date.toLocaleString();
 }
 
-function element(tag, props = {}, children = []) {
-  const node = document.createElement(tag);
-  Object.assign(node, props);
-  for (const child of children) node.append(child);
-  return node;
-}
-
-const isUnauthorized = (error) => error instanceof ApiError && error.status === 401;
+const isUnauthorized = (error) => isStatus(error, 401);
 
 function showMessage(text, kind = '') {
   const box = $('scan-message');
@@ -126,12 +120,12 @@ async function startScan() {
     refreshStatus();
   } catch (error) {
     button.disabled = false;
-    if (error instanceof ApiError && error.status === 409) {
+    if (isStatus(error, 409)) {
       showMessage('The head is busy with another scan; try again when it is done.', 'warn');
       refreshStatus();
-    } else if (error instanceof ApiError && error.status === 507) {
+    } else if (isStatus(error, 507)) {
       showMessage('No room on the disk for another scan: delete some scans.', 'error');
-    } else if (error instanceof ApiError && error.status === 401) {
+    } else if (isStatus(error, 401)) {
       showMessage('A token is needed to scan.', 'warn');
     } else {
       showMessage(`Scan refused: ${error.message}`, 'error');

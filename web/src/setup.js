@@ -4,8 +4,9 @@
 // of each frame, exposure and gain (PATCH /api/v1/cameras/{name}), whether it
 // is calibrated, and a full-resolution snapshot (docs/http-api.md, "Cameras").
 
-import { ApiError, getBlob, getJson, patchJson } from './api.js';
+import { getBlob, getJson, isStatus, patchJson } from './api.js';
 import { LiveView } from './live.js';
+import { element } from './dom.js';
 
 // Settings are sent once the slider has rested this long.
 const DEBOUNCE_MS = 300;
@@ -23,13 +24,6 @@ const CAPTURE_PAUSED_TEXT = {
   fringe: 'Live view paused: checking the fringes',
 };
 const CAPTURE_KIND = { 'calibration board': 'board', 'calibration plane': 'plane', 'fringe check': 'fringe' };
-
-function element(tag, props = {}, children = []) {
-  const node = document.createElement(tag);
-  Object.assign(node, props);
-  for (const child of children) node.append(child);
-  return node;
-}
 
 // A slider position (0..SLIDER_STEPS) for a control's value and back: on a
 // log scale when the range allows (exposure spans decades), else linear.
@@ -274,8 +268,8 @@ class CameraCard {
       if (camera && camera.controls) this.update(camera);
       this.say(`Set ${said}.`, 'ok');
     } catch (error) {
-      if (error instanceof ApiError && error.status === 401) this.say('A token is needed to change the settings.', 'warn');
-      else if (error instanceof ApiError && error.status === 409) this.say(`Not set (the head is busy): ${error.message}`, 'error');
+      if (isStatus(error, 401)) this.say('A token is needed to change the settings.', 'warn');
+      else if (isStatus(error, 409)) this.say(`Not set (the head is busy): ${error.message}`, 'error');
       else this.say(`Not set: ${error.message}`, 'error');
       // Back to what the head has.
       for (const key of Object.keys(body)) {
@@ -300,7 +294,7 @@ class CameraCard {
       a.remove();
       setTimeout(() => URL.revokeObjectURL(url), 60000);
     } catch (error) {
-      if (error instanceof ApiError && error.status === 401) this.say('A token is needed for a snapshot.', 'warn');
+      if (isStatus(error, 401)) this.say('A token is needed for a snapshot.', 'warn');
       else this.say(`Snapshot: ${error.message}`, 'error');
     } finally {
       this.snapshotButton.disabled = false;
@@ -421,8 +415,8 @@ export class SetupView {
         this.say(cameras.length === 0 ? 'The head reports no camera.' : '');
         this.streamAsNeeded();
       } catch (error) {
-        if (error instanceof ApiError && error.status === 401) this.say('A token is needed to set up the cameras.', 'muted');
-        else if (error instanceof ApiError && error.status === 404) {
+        if (isStatus(error, 401)) this.say('A token is needed to set up the cameras.', 'muted');
+        else if (isStatus(error, 404)) {
           this.say(`This head offers no camera set-up (${error.message}).`, 'error');
         } else this.say(`Cameras: ${error.message}`, 'error');
       } finally {
