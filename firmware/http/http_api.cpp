@@ -104,9 +104,7 @@ struct Request {
   std::string body;
   std::optional<Reply> deferred;  // a refusal to answer in the last call
   bool holds_calibration_upload = false;
-  bool answered = false;   // a response is queued
-  bool streaming = false;  // an event stream: counted when it starts
-  int status = 0;
+  bool answered = false;                         // a response is queued
   std::shared_ptr<struct PendingReply> pending;  // suspended until its reply is ready
   bool counted_pending = false;                  // in pending_in_flight
   bool in_begin = false;                         // answering in the first call: the body is unread
@@ -669,7 +667,9 @@ MHD_Result ApiServer::answer(MHD_Connection* c, Request& r, Reply reply) {
   MHD_destroy_response(response);
   if (result == MHD_YES) {
     r.answered = true;
-    r.status = reply.status;
+    // Counted before a byte of the answer leaves: a client that reads the
+    // metrics next must find its previous request in them.
+    metrics.record(reply.status, Clock::now() - r.start);
   } else {
     log("cannot queue the answer " + std::to_string(reply.status) + " to " + r.method + " " +
         r.url);
@@ -939,8 +939,6 @@ MHD_Result ApiServer::startStream(MHD_Connection* c, Request& r,
   MHD_destroy_response(response);  // on failure this frees the client (sseFree)
   if (result == MHD_YES) {
     r.answered = true;
-    r.streaming = true;
-    r.status = 200;
     metrics.record(200, Clock::now() - r.start);
   }
   sse_cv.notify_all();  // the pump wakes for its first client
@@ -1078,7 +1076,6 @@ void ApiServer::completed(const Request& r) {
     --pending_in_flight;
     sse_cv.notify_all();
   }
-  if (r.answered && !r.streaming) metrics.record(r.status, Clock::now() - r.start);
 }
 
 void ApiServer::sseFreed(SseClient* client) {

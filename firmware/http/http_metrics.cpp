@@ -30,7 +30,9 @@ std::string HttpMetrics::text(std::size_t sse_clients) const {
                   static_cast<unsigned long long>(n));
     out += line;
   }
-  out += "# HELP cylscan_http_request_duration_seconds Time to answer an HTTP request.\n";
+  out +=
+      "# HELP cylscan_http_request_duration_seconds Time from a request's arrival to its queued "
+      "answer.\n";
   out += "# TYPE cylscan_http_request_duration_seconds histogram\n";
   std::uint64_t cumulative = 0;
   for (std::size_t i = 0; i < kBuckets.size(); ++i) {
