@@ -2,6 +2,7 @@
 #include "drivers/rotation_stage.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -16,6 +17,13 @@ std::string degrees(double deg) {
   char text[32];
   std::snprintf(text, sizeof text, "%g°", deg);
   return text;
+}
+
+// `steps` brought into [-turn/2, turn/2) by whole turns.
+std::int64_t nearestTurn(std::int64_t steps, std::int64_t turn) {
+  std::int64_t r = ((steps % turn) + turn) % turn;
+  if (2 * r >= turn) r -= turn;
+  return r;
 }
 
 void requireLine(bool present, const char* role) {
@@ -34,11 +42,12 @@ StageLines requestStageLines(GpioBackend& gpio, const StageLineSpecs& specs) {
   return lines;
 }
 
-// Asked after every step: the fault input, and (when watched) the first
-// active edge of the home switch.
+// Asked after every step: the fault input, and the home switch's active
+// edges: a seek stops at the first; any other move notes them and goes on.
 class RotationStage::Watch final : public StopCondition {
  public:
-  Watch(InputLine* home, InputLine* fault) : home_(home), fault_(fault) {}
+  Watch(InputLine* home, InputLine* fault, bool stop_at_home)
+      : home_(home), fault_(fault), stop_at_home_(stop_at_home) {}
   bool stopNow() override {
     if (fault_ != nullptr && fault_->get()) {
       fault_seen = true;
@@ -46,19 +55,30 @@ class RotationStage::Watch final : public StopCondition {
     }
     if (home_ == nullptr) return false;
     while (const std::optional<LineEvent> e = home_->waitEdge(Nanoseconds{0})) {
-      if (e->edge == Edge::Rising) {
+      const bool rising = e->edge == Edge::Rising;
+      if (stop_at_home_) {
+        if (!rising) continue;
         edge = e->timestamp;
         return true;
       }
+      if (passed_count < passed.size()) passed[passed_count++] = {e->timestamp, rising};
     }
     return false;
   }
   bool fault_seen = false;
   std::optional<Nanoseconds> edge;
+  // Edges passed on the way (no allocation: a move passes home a few times at most).
+  struct Passed {
+    Nanoseconds time{0};
+    bool rising = false;
+  };
+  std::array<Passed, 2 * kMaxPassedEdges> passed{};
+  std::size_t passed_count = 0;
 
  private:
   InputLine* home_;
   InputLine* fault_;
+  bool stop_at_home_;
 };
 
 RotationStage::RotationStage(StageConfig config, Clock& clock, StageLines lines)
@@ -141,8 +161,11 @@ void RotationStage::noteLastStep(std::int64_t steps) {
 
 RotationStage::Run RotationStage::execute(const StepSchedule& schedule, bool watch_home,
                                           OutputLine* trigger) {
-  Watch watch(watch_home ? lines_.home.get() : nullptr, lines_.fault.get());
+  if (!watch_home) drainHomeEdges();  // only this move's edges are its own
+  Watch watch(lines_.home.get(), lines_.fault.get(), watch_home);
   Run run;
+  // A reversal ends the pass in which the switch may still chatter.
+  if (left_home_ && left_home_->direction != schedule.direction()) left_home_.reset();
   const Nanoseconds origin = originFor(schedule);
   run.result = trigger ? executor_.run(schedule, *trigger, &watch, origin)
                        : executor_.run(schedule, &watch, origin);
@@ -158,11 +181,31 @@ RotationStage::Run RotationStage::execute(const StepSchedule& schedule, bool wat
     fail("stage fault input active during a move (after " + std::to_string(run.result.steps) +
          " of " + std::to_string(schedule.steps()) + " steps)");
   }
-  if (!watch.edge) return run;
-  // The step that made the edge: the last one emitted at or before it.
+  // The step that made an edge: the last one emitted at or before it.
   const auto times = executor_.stepTimes();
-  const auto k = std::upper_bound(times.begin(), times.end(), *watch.edge) - times.begin();
-  run.edge_position = before + d * static_cast<std::int64_t>(k);
+  const auto stepAt = [&](Nanoseconds t) {
+    return static_cast<std::int64_t>(std::upper_bound(times.begin(), times.end(), t) -
+                                     times.begin());
+  };
+  // A switch may chatter as the stage leaves it: an active edge soon after
+  // leaving it in the same direction is not the stage meeting it again,
+  // which takes a turn (or a reversal).
+  const std::int64_t half_turn = std::llround(180.0 * config_.stepsPerDeg());
+  for (std::size_t i = 0; i < watch.passed_count; ++i) {
+    const std::int64_t k = stepAt(watch.passed[i].time);
+    if (k == 0) continue;  // it came before the move
+    const std::int64_t at = before + d * k;
+    if (!watch.passed[i].rising) {
+      left_home_ = LeftHome{at, d};
+      continue;
+    }
+    if (left_home_ && left_home_->direction == d && std::abs(at - left_home_->position) < half_turn)
+      continue;
+    if (run.passed_count < run.passed.size()) run.passed[run.passed_count++] = at;
+  }
+  if (homed_) checkPassedEdges(run, d);
+  if (!watch.edge) return run;
+  run.edge_position = before + d * stepAt(*watch.edge);
   run.edge_time = *watch.edge;
   // Stopped at speed: ramp down instead of stopping dead, from the last
   // step as it went out (after a late edge the motor may be slower than
@@ -175,7 +218,7 @@ RotationStage::Run RotationStage::execute(const StepSchedule& schedule, bool wat
     const auto actual_gap = static_cast<double>((times[last] - times[last - 1]).count());
     const double speed = actual_gap > 0 ? std::min(planned, 1e9 / actual_gap) : planned;
     const StepSchedule ramp = planStop(config_, schedule.forward, speed);
-    Watch fault_only(nullptr, lines_.fault.get());
+    Watch fault_only(nullptr, lines_.fault.get(), false);
     const ExecutionResult r = executor_.run(ramp, &fault_only, times[last]);
     position_ += d * r.steps;
     noteLastStep(r.steps);
@@ -185,20 +228,74 @@ RotationStage::Run RotationStage::execute(const StepSchedule& schedule, bool wat
   return run;
 }
 
-std::int64_t RotationStage::move(std::int64_t steps, double speed_deg_s) {
+void RotationStage::checkPassedEdges(const Run& run, int direction) {
+  const std::optional<std::int64_t>& edge = edgeFor(direction);
+  if (!edge) return;
+  const std::optional<std::int64_t> turn = config_.stepsPerTurn();
+  for (std::size_t i = 0; i < run.passed_count; ++i) {
+    const std::int64_t found = run.passed[i];
+    const std::int64_t off = turn ? nearestTurn(found - *edge, *turn) : found - *edge;
+    const std::int64_t expected = found - off;
+    if (std::abs(off) > config_.step_check_tolerance_steps) {
+      fail("lost " + std::to_string(std::abs(off)) + " steps: the home edge is at step " +
+           std::to_string(found) + " as the stage passes it, the executed count expects " +
+           std::to_string(expected) + " (tolerance " +
+           std::to_string(config_.step_check_tolerance_steps) + ")");
+    }
+    last_passed_check_ = StepCheck{expected, found, true};
+    ++passed_checks_;
+  }
+}
+
+RotationStage::Run RotationStage::move(std::int64_t steps, double speed_deg_s) {
   requireEnabled("a move");
   checkFault("before a move");
-  execute(planMove(config_, steps, speed_deg_s), false, nullptr);
+  Run run = execute(planMove(config_, steps, speed_deg_s), false, nullptr);
   checkFault("after a move");
-  return position_;
+  return run;
 }
 
 std::int64_t RotationStage::moveBySteps(std::int64_t steps) {
-  return move(steps, config_.max_speed_deg_s);
+  move(steps, config_.max_speed_deg_s);
+  return position_;
 }
 
 std::int64_t RotationStage::moveToStep(std::int64_t target) {
-  return move(target - position_, config_.max_speed_deg_s);
+  move(target - position_, config_.max_speed_deg_s);
+  return position_;
+}
+
+std::int64_t RotationStage::turnTo(std::int64_t target, int direction) {
+  const std::optional<std::int64_t> turn = config_.stepsPerTurn();
+  if (!turn)
+    throw std::logic_error("rotation stage: turnTo() needs a whole number of steps a turn");
+  if (direction != 1 && direction != -1) {
+    throw std::invalid_argument("rotation stage: turnTo() direction must be +1 or -1");
+  }
+  std::int64_t steps = ((target - position_) % *turn + *turn) % *turn;  // [0, turn)
+  if (direction < 0 && steps != 0) steps -= *turn;
+  move(steps, config_.max_speed_deg_s);
+  // The same place, counted within the turn the plan uses.
+  if (left_home_) left_home_->position += target - position_;
+  position_ = target;
+  return position_;
+}
+
+bool RotationStage::passesCheckedEdge(std::int64_t from, std::int64_t steps) const {
+  if (steps == 0) return false;
+  const int d = steps > 0 ? 1 : -1;
+  const std::optional<std::int64_t>& edge = edgeFor(d);
+  if (!edge) return false;
+  // The edge must lie well inside the move, so that a count off by the
+  // tolerance still meets it.
+  const std::int64_t margin = config_.step_check_tolerance_steps + 1;
+  const std::int64_t lo = std::min(from, from + steps) + margin;
+  const std::int64_t hi = std::max(from, from + steps) - margin;
+  if (lo > hi) return false;
+  const std::optional<std::int64_t> turn = config_.stepsPerTurn();
+  if (!turn) return *edge >= lo && *edge <= hi;
+  const std::int64_t first = lo + ((*edge - lo) % *turn + *turn) % *turn;  // ≥ lo, ≡ edge
+  return first <= hi;
 }
 
 std::int64_t RotationStage::moveTo(double angle_deg) {
@@ -216,6 +313,8 @@ HomeResult RotationStage::home() {
   requireEnabled("home()");
   checkFault("before homing");
   homed_ = false;
+  edge_ = {};
+  left_home_.reset();
   const int d = config_.home_direction;
   const std::int64_t backoff = degToSteps(config_.home_backoff_deg);
   const std::string backoff_text = degrees(config_.home_backoff_deg);
@@ -235,7 +334,10 @@ HomeResult RotationStage::home() {
   }
   HomeResult result;
   result.seek_steps = d * (*seek.edge_position - seek_start);
-  move(*seek.edge_position - d * backoff - position_, config_.home_seek_speed_deg_s);
+  // Backing off passes the switch's other edge (the one a move away from
+  // home meets) when the seek's ramp down went beyond the window.
+  const Run back =
+      move(*seek.edge_position - d * backoff - position_, config_.home_seek_speed_deg_s);
   if (lines_.home->get()) {
     fail("home switch still active " + backoff_text + " back from its edge: stuck, or its " +
          "polarity is wrong");
@@ -245,7 +347,10 @@ HomeResult RotationStage::home() {
     fail("home edge not found again on the slow approach (within " +
          degrees(2 * config_.home_backoff_deg) + ")");
   }
-  position_ += degToSteps(config_.home_offset_deg) - *approach.edge_position;
+  const std::int64_t rebase = degToSteps(config_.home_offset_deg) - *approach.edge_position;
+  position_ += rebase;
+  edgeFor(d) = degToSteps(config_.home_offset_deg);
+  if (back.passed_count > 0) edgeFor(-d) = back.passed[0] + rebase;
   homed_ = true;
   result.edge_time = approach.edge_time;
   return result;
@@ -258,6 +363,7 @@ StepCheck RotationStage::verifyStepCount() {
   const std::int64_t backoff = degToSteps(config_.home_backoff_deg);
   StepCheck check;
   check.expected_edge = degToSteps(config_.home_offset_deg);
+  check.passed = false;
   moveToStep(check.expected_edge - d * backoff);
   if (lines_.home->get()) {
     fail("lost steps: the home switch is active where the executed count puts the stage " +

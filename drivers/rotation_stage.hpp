@@ -10,6 +10,7 @@
 // an ordinary thread, runSweep() (no allocation) on a RealtimeThread.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -52,8 +53,12 @@ struct HomeResult {
 struct StepCheck {
   std::int64_t expected_edge = 0;  // where the count puts the home edge (steps)
   std::int64_t found_edge = 0;     // where it was found, in the same count
+  bool passed = false;             // found passing it on the way, not by a seek
   std::int64_t lostSteps() const { return found_edge - expected_edge; }
 };
+
+// Home edges a single move can note as it passes them.
+inline constexpr std::size_t kMaxPassedEdges = 8;
 
 // A sweep ready to run: planned, the stage at its start.
 struct PreparedSweep {
@@ -87,8 +92,28 @@ class RotationStage {
   bool homed() const { return homed_; }
 
   // Moves with the configured trapezoid; the executed position in steps.
+  // Every move notes the home edges it passes; once homed, each is compared
+  // with where the count puts that edge for the direction of the move (the
+  // switch is a window: its edge moving up is not its edge moving down, and
+  // backlash differs by direction), and StageError "lost N steps" beyond
+  // step_check_tolerance_steps. The edge of the homing direction is known
+  // from homing; the other one from homing's back-off, when that passes it.
   std::int64_t moveBySteps(std::int64_t steps);
   std::int64_t moveToStep(std::int64_t target);
+  // With a whole number of steps per turn: moves `direction` (+1 or -1) to
+  // the nearest position that is `target` modulo a turn, and counts it as
+  // `target` (std::logic_error without one).
+  std::int64_t turnTo(std::int64_t target, int direction);
+  // Whether a move of `steps` from `from` would pass a home edge that checks
+  // the count (one whose position is known for that direction).
+  bool passesCheckedEdge(std::int64_t from, std::int64_t steps) const;
+  // The last check made on the way, and how many since resetPassedChecks().
+  const std::optional<StepCheck>& lastPassedCheck() const { return last_passed_check_; }
+  int passedChecks() const { return passed_checks_; }
+  void resetPassedChecks() noexcept {
+    last_passed_check_.reset();
+    passed_checks_ = 0;
+  }
   std::int64_t moveTo(double angle_deg);  // the nearest step; needs home()
 
   // Executed position: steps emitted × direction since homing (or power-up).
@@ -126,12 +151,19 @@ class RotationStage {
     ExecutionResult result;
     std::optional<std::int64_t> edge_position;  // of the home edge, when watched for and seen
     std::chrono::nanoseconds edge_time{0};
+    std::array<std::int64_t, kMaxPassedEdges> passed{};  // edges passed on the way (steps)
+    std::size_t passed_count = 0;
   };
+  void checkPassedEdges(const Run& run, int direction);
+  std::optional<std::int64_t>& edgeFor(int direction) { return edge_[direction > 0 ? 1 : 0]; }
+  const std::optional<std::int64_t>& edgeFor(int direction) const {
+    return edge_[direction > 0 ? 1 : 0];
+  }
   Run execute(const StepSchedule& schedule, bool watch_home, OutputLine* trigger);
   std::chrono::nanoseconds originFor(const StepSchedule& schedule) const;
   void noteLastStep(std::int64_t steps);
   Run seekEdge(std::int64_t steps, double speed_deg_s);
-  std::int64_t move(std::int64_t steps, double speed_deg_s);
+  Run move(std::int64_t steps, double speed_deg_s);
   void drainHomeEdges();
   void requireEnabled(const char* what);
   void checkFault(const char* when);
@@ -145,6 +177,17 @@ class RotationStage {
   bool enabled_ = false;
   bool homed_ = false;
   std::int64_t position_ = 0;
+  // Where the count puts the home edge met moving down [0] and up [1]
+  // (modulo a turn when it is whole); set by homing.
+  std::array<std::optional<std::int64_t>, 2> edge_;
+  std::optional<StepCheck> last_passed_check_;
+  int passed_checks_ = 0;
+  // Where and which way a move last saw the switch go inactive.
+  struct LeftHome {
+    std::int64_t position = 0;
+    int direction = 0;
+  };
+  std::optional<LeftHome> left_home_;
   // The last step emitted: the next move's first step comes no sooner than
   // one start-speed interval after it (the motor starts from rest).
   std::optional<std::chrono::nanoseconds> last_step_;

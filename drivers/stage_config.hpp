@@ -4,6 +4,10 @@
 // [stage] section of a board profile (board/<name>/board.toml).
 #pragma once
 
+#include <cmath>
+#include <cstdint>
+#include <optional>
+
 namespace cylscan::drivers {
 
 struct StageConfig {
@@ -33,12 +37,20 @@ struct StageConfig {
   double home_max_travel_deg = 370.0;  // no edge within this travel: "home switch never fired"
   double home_offset_deg = 0.0;        // angle of the home edge in the stage's zero
 
-  // A re-home after a scan finds the edge within this many steps of where the
-  // executed step count says it is; more means lost steps.
+  // A home edge, passed on the way or sought again, is within this many steps
+  // of where the executed step count puts it; more means lost steps.
   int step_check_tolerance_steps = 2;
 
   double stepsPerDeg() const {
     return static_cast<double>(full_steps_per_rev) * microsteps * gear_ratio / 360.0;
+  }
+  // Steps of one turn of the stage, when that is a whole number: the stage can
+  // then keep its count modulo a turn and reach a step by either way round.
+  std::optional<std::int64_t> stepsPerTurn() const {
+    const double turn = static_cast<double>(full_steps_per_rev) * microsteps * gear_ratio;
+    const double whole = std::round(turn);
+    if (whole < 1 || std::abs(turn - whole) > 1e-9 * whole) return std::nullopt;
+    return static_cast<std::int64_t>(whole);
   }
 };
 

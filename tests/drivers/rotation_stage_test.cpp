@@ -95,6 +95,50 @@ TEST(RotationStage, InjectedLostStepsAreCaughtByTheStepCheck) {
   EXPECT_FALSE(rig.stage.enabled());
 }
 
+// A turn is 90000 steps: the stage reaches a step either way round, and every
+// move that passes home checks the count against the edge of its direction
+// (homing's edge moving down, the one homing's back-off met moving up).
+TEST(RotationStage, PassingHomeChecksTheCountEitherWayRound) {
+  Rig rig(3.0, /*with_fault=*/false);
+  rig.stage.enable();
+  rig.stage.home();
+  rig.stage.moveTo(30.0);
+  rig.stage.resetPassedChecks();
+  const auto turnPosition = [&] { return ((rig.head.stage().position() % 90000) + 90000) % 90000; };
+  EXPECT_TRUE(rig.stage.passesCheckedEdge(rig.stage.position(), -90 * 250));
+  EXPECT_EQ(rig.stage.turnTo(300 * 250, -1), 75000);  // down past home
+  EXPECT_EQ(turnPosition(), 75000);
+  EXPECT_EQ(rig.stage.passedChecks(), 1);
+  ASSERT_TRUE(rig.stage.lastPassedCheck());
+  EXPECT_TRUE(rig.stage.lastPassedCheck()->passed);
+  EXPECT_EQ(rig.stage.lastPassedCheck()->lostSteps(), 0);
+  EXPECT_TRUE(rig.stage.passesCheckedEdge(rig.stage.position(), 90 * 250));
+  EXPECT_EQ(rig.stage.turnTo(30 * 250, 1), 7500);  // up past home
+  EXPECT_EQ(turnPosition(), 7500);
+  EXPECT_EQ(rig.stage.passedChecks(), 2);
+  EXPECT_EQ(rig.stage.lastPassedCheck()->lostSteps(), 0);
+  // A move that stays clear of home checks nothing.
+  EXPECT_FALSE(rig.stage.passesCheckedEdge(rig.stage.position(), 90 * 250));
+  rig.stage.moveTo(120.0);
+  EXPECT_EQ(rig.stage.passedChecks(), 2);
+  // Steps lost on the way fail the next pass, naming them.
+  // Within a step of 7: the switch's repeatability (σ 0.5 step) between the
+  // pass that learned the edge and this one.
+  rig.head.loseSteps(7);
+  try {
+    rig.stage.turnTo(30 * 250, 1);
+    ADD_FAILURE() << "the lost steps went unnoticed";
+  } catch (const StageError& e) {
+    const std::string text = e.what();
+    const auto at = text.find("lost ");
+    ASSERT_NE(at, std::string::npos) << text;
+    EXPECT_NEAR(std::stoi(text.substr(at + 5)), 7, 1) << text;
+    EXPECT_NE(text.find("as the stage passes it"), std::string::npos) << text;
+  }
+  EXPECT_FALSE(rig.stage.homed());
+  EXPECT_FALSE(rig.head.stage().enabled());
+}
+
 TEST(RotationStage, LossesWithinTheToleranceAreReported) {
   Rig rig(3.0, false);
   rig.stage.enable();
