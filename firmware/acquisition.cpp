@@ -124,14 +124,104 @@ class RunningCameras {
   std::vector<drivers::Camera*> cameras_;
 };
 
+// Continuous mode: the sweep of one motion set, always upwards so that the
+// backlash is taken up the same way for every frame of every scan.
+drivers::SweepRequest sweepRequest(const ScanOptions& options, const SetPlan& set) {
+  const int n = static_cast<int>(set.positions.size());
+  drivers::SweepRequest request;
+  request.direction = 1;
+  // One frame step per frame period: the set's own step (θ/N for a sets
+  // plan; a ring plan's common Δ, which differs from θ/N).
+  const double frame_step_deg = set.step_deg > 0 ? set.step_deg : set.period_deg / n;
+  request.speed_deg_s = options.sweep_speed_deg_s > 0 ? options.sweep_speed_deg_s
+                                                      : frame_step_deg * options.frame_rate_hz;
+  request.range_steps = set.positions.back() - set.positions.front();
+  for (const auto p : set.positions)
+    request.trigger_offsets.push_back(p - set.positions.front());
+  request.trigger_pulse_us = options.trigger_pulse_us;
+  request.trigger_lead_us = options.exposure_us / 2;  // the exposure centred on the step
+  return request;
+}
+
+// Where the stage is when a motion set begins (its first frame, or its
+// sweep's run-up) and when it ends (its last frame, or the sweep's run-out).
+struct SetSpan {
+  std::int64_t begin = 0;
+  std::int64_t end = 0;
+};
+
+SetSpan spanOf(const ScanOptions& options, const SetPlan& set, const drivers::StageConfig& stage) {
+  if (options.mode == ScanMode::StopAndGo) return {set.positions.front(), set.positions.back()};
+  const drivers::SweepPlan sweep = drivers::planSweep(stage, sweepRequest(options, set));
+  return {set.positions.front() - sweep.run_up_steps, set.positions.back() + sweep.run_out_steps};
+}
+
+// A way from one place to another: the signed steps of the move.
+struct Leg {
+  std::int64_t steps = 0;
+  bool checks = false;  // passes a home edge that checks the step count
+};
+
+// A longer way round is taken when it passes a home edge and the shorter one
+// does not, up to this fraction of a turn: the scan's step count is then
+// checked on the way instead of by seeking home afterwards (seconds).
+constexpr double kCheckDetourTurns = 0.05;
+
+// The ways from `from` to `to`: directly, and with a whole number of steps
+// a turn, either way round (the count is kept within the plan's turn).
+std::vector<Leg> waysBetween(const drivers::RotationStage& stage, std::int64_t from,
+                             std::int64_t to) {
+  std::vector<Leg> ways;
+  const std::optional<std::int64_t> turn = stage.config().stepsPerTurn();
+  if (!turn) {
+    ways.push_back({to - from, stage.passesCheckedEdge(from, to - from)});
+    return ways;
+  }
+  const std::int64_t up = ((to - from) % *turn + *turn) % *turn;
+  ways.push_back({up, stage.passesCheckedEdge(from, up)});
+  if (up != 0) ways.push_back({up - *turn, stage.passesCheckedEdge(from, up - *turn)});
+  return ways;
+}
+
+Leg chooseLeg(const drivers::RotationStage& stage, std::int64_t from, std::int64_t to,
+              bool want_check) {
+  const std::vector<Leg> ways = waysBetween(stage, from, to);
+  Leg best = ways.front();
+  for (const Leg& w : ways)
+    if (std::abs(w.steps) < std::abs(best.steps)) best = w;
+  if (!want_check || best.checks) return best;
+  const std::optional<std::int64_t> turn = stage.config().stepsPerTurn();
+  const double detour = turn ? kCheckDetourTurns * static_cast<double>(*turn) : 0.0;
+  for (const Leg& w : ways) {
+    if (w.checks && static_cast<double>(std::abs(w.steps) - std::abs(best.steps)) <= detour)
+      return w;
+  }
+  return best;
+}
+
 }  // namespace
+
+// The order the stage runs the two motion sets in and the way to each: the
+// set nearer to where the stage stands first, so that scans alternate and
+// each starts where the last ended; between them, the way that passes home
+// when that costs little.
+struct Acquisition::Route {
+  std::array<FringeSet, 2> order{FringeSet::High, FringeSet::Low};
+  int firstFrame(FringeSet id, const ScanPlan& plan) const {
+    return id == order[0] ? 0 : static_cast<int>(plan.set(order[0]).positions.size());
+  }
+};
 
 // What the two threads share. Written before the scan starts, then only
 // through the atomics (release on publish, acquire on read).
 struct Acquisition::Shared {
-  explicit Shared(int frames)
-      : angle_deg(static_cast<std::size_t>(frames)), trigger_ns(static_cast<std::size_t>(frames)) {}
+  Shared(int frames, Route r)
+      : route(r),
+        angle_deg(static_cast<std::size_t>(frames)),
+        trigger_ns(static_cast<std::size_t>(frames)) {}
 
+  const Route route;
+  // Frames are counted in the order the stage runs them (route.order).
   std::vector<double> angle_deg;                      // written before `triggered` passes the frame
   std::vector<std::atomic<std::int64_t>> trigger_ns;  // latest trigger of each frame
   std::atomic<int> triggered{0};                      // frames triggered (or, continuous, armed)
@@ -145,6 +235,7 @@ struct Acquisition::Shared {
   std::atomic<bool> motion_done{false};
   std::atomic<bool> motion_attached{false};
   std::optional<drivers::StepCheck> step_check;  // written before motion_done
+  ScanTimeSplit split;                           // the same
   std::mutex error_mutex;
   std::string error;
 
@@ -309,22 +400,42 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
     }
   };
   try {
+    ScanTimeSplit& split = shared.split;
+    nanoseconds mark = clock.now();
+    const auto lap = [&](nanoseconds& into) {
+      const nanoseconds now = clock.now();
+      into += now - mark;
+      mark = now;
+    };
     if (!stage_->homed()) {
       stage_->enable();
       stage_->home();
     }
     stage_->enable();
+    stage_->resetPassedChecks();
+    lap(split.homing);
     int base = 0;
-    for (const FringeSet id : kFringeSets) {
+    for (const FringeSet id : shared.route.order) {
       const SetPlan& set = plan.set(id);
       const int n = static_cast<int>(set.positions.size());
+      const SetSpan span = spanOf(options, set, stage_->config());
+      const Leg leg = chooseLeg(*stage_, stage_->position(), span.begin,
+                                options.verify_steps && stage_->passedChecks() == 0);
+      if (stage_->config().stepsPerTurn()) {
+        if (leg.steps != 0) stage_->turnTo(span.begin, leg.steps > 0 ? 1 : -1);
+      } else {
+        stage_->moveToStep(span.begin);
+      }
+      lap(split.travel);
       if (options.mode == ScanMode::StopAndGo) {
         for (int k = 0; k < n; ++k) {
           const int frame = base + k;
           stage_->moveToStep(set.positions[static_cast<std::size_t>(k)]);
+          lap(split.sets);
           const nanoseconds settled = clock.now() + us(options.settle_ms * 1e3);
           shared.next_trigger_ns.store(settled.count(), std::memory_order_release);
           clock.sleepUntil(settled);
+          lap(split.settling);
           shared.angle_deg[static_cast<std::size_t>(frame)] = stage_->angleDeg();
           shared.triggered.store(frame + 1, std::memory_order_release);
           pulse(frame);
@@ -334,19 +445,7 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
           if (ack == Ack::kStop) return;
         }
       } else {
-        drivers::SweepRequest request;
-        request.direction = 1;
-        // One frame step per frame period: the set's own step (θ/N for a sets
-        // plan; a ring plan's common Δ, which differs from θ/N).
-        const double frame_step_deg = set.step_deg > 0 ? set.step_deg : set.period_deg / n;
-        request.speed_deg_s = options.sweep_speed_deg_s > 0
-                                  ? options.sweep_speed_deg_s
-                                  : frame_step_deg * options.frame_rate_hz;
-        request.range_steps = set.positions.back() - set.positions.front();
-        for (const auto p : set.positions)
-          request.trigger_offsets.push_back(p - set.positions.front());
-        request.trigger_pulse_us = options.trigger_pulse_us;
-        request.trigger_lead_us = options.exposure_us / 2;  // the exposure centred on the step
+        const drivers::SweepRequest request = sweepRequest(options, set);
         for (;;) {
           const drivers::PreparedSweep sweep = stage_->prepareSweep(set.positions.front(), request);
           for (int k = 0; k < n; ++k)
@@ -364,11 +463,15 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
           if (ack == Ack::kDone) break;  // else sweep the set again
         }
       }
+      lap(split.sets);
       base += n;
     }
-    if (options.verify_steps) {
+    if (stage_->lastPassedCheck()) {
+      shared.step_check = stage_->lastPassedCheck();
+    } else if (options.verify_steps) {
       shared.step_check = stage_->verifyStepCount();
     }
+    lap(split.step_check);
     stage_->disable();
   } catch (const std::exception& e) {
     shared.fail(e.what());
@@ -416,7 +519,7 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
                      us(profile.image_latency_ms * 1e3)};
   }
   int base = 0;
-  for (const FringeSet id : kFringeSets) {
+  for (const FringeSet id : shared.route.order) {
     const int n = static_cast<int>(plan.set(id).positions.size());
     received.clear();
     skip.clear();
@@ -506,6 +609,56 @@ void Acquisition::capture(const ScanOptions& options, const ScanPlan& plan, Fram
   awaitMotion([] { return false; });  // until the motion ends (the step check) or halts
 }
 
+std::map<std::string, double> timeSplitSeconds(const ScanTimeSplit& split) {
+  const auto s = [](nanoseconds t) { return static_cast<double>(t.count()) / 1e9; };
+  return {{"homing", s(split.homing)},
+          {"travel", s(split.travel)},
+          {"sets", s(split.sets)},
+          {"settling", s(split.settling)},
+          {"step_check", s(split.step_check)}};
+}
+
+std::chrono::nanoseconds shortestScan(const ScanOptions& options, const ScanPlan& plan,
+                                      const drivers::StageConfig& stage) {
+  ScanOptions continuous = options;
+  continuous.mode = ScanMode::Continuous;
+  const auto duration = [](const drivers::StepSchedule& s) {
+    return s.step_ns.empty() ? nanoseconds{0} : nanoseconds{s.step_ns.back()};
+  };
+  nanoseconds sweeps{0};
+  for (const FringeSet id : kFringeSets)
+    sweeps += duration(drivers::planSweep(stage, sweepRequest(continuous, plan.set(id))).schedule);
+  const SetSpan high = spanOf(continuous, plan.high, stage);
+  const SetSpan low = spanOf(continuous, plan.low, stage);
+  const std::optional<std::int64_t> turn = stage.stepsPerTurn();
+  const auto gap = [&](std::int64_t from, std::int64_t to) {
+    const std::int64_t direct = std::abs(to - from);
+    if (!turn) return direct;
+    const std::int64_t up = ((to - from) % *turn + *turn) % *turn;
+    return std::min(up, *turn - up);
+  };
+  const std::int64_t travel = std::min(gap(high.end, low.begin), gap(low.end, high.begin));
+  return sweeps + duration(drivers::planMove(stage, travel));
+}
+
+std::array<FringeSet, 2> Acquisition::nextSetOrder(const ScanOptions& options,
+                                                   const ScanPlan& plan) const {
+  const drivers::StageConfig& config = stage_->config();
+  // Homing leaves the stage at its home edge.
+  const std::int64_t at = stage_->homed()
+                              ? stage_->position()
+                              : std::llround(config.home_offset_deg * config.stepsPerDeg());
+  const auto travel = [&](FringeSet first, FringeSet second) {
+    const SetSpan a = spanOf(options, plan.set(first), config);
+    const SetSpan b = spanOf(options, plan.set(second), config);
+    return std::abs(chooseLeg(*stage_, at, a.begin, false).steps) +
+           std::abs(chooseLeg(*stage_, a.end, b.begin, false).steps);
+  };
+  if (travel(FringeSet::Low, FringeSet::High) < travel(FringeSet::High, FringeSet::Low))
+    return {FringeSet::Low, FringeSet::High};
+  return {FringeSet::High, FringeSet::Low};
+}
+
 ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink,
                             const std::function<void(const ScanProgress&)>& progress) {
   abort_.store(false, std::memory_order_release);
@@ -528,7 +681,7 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
                                   "mode needs cameras that deliver one frame per trigger");
   }
   ScanReport report;
-  Shared shared(plan.frames());
+  Shared shared(plan.frames(), Route{nextSetOrder(options, plan)});
   drivers::Clock& clock = board_.clock();
   const nanoseconds started = clock.now();
   // The executor is idle between scans: its lateness figures start again so
@@ -566,6 +719,7 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
   }
   report.duration = clock.now() - started;
   report.step_check = shared.step_check;
+  report.split = shared.split;
   report.step_jitter = stage_->executor().stepJitter().snapshot();
   report.trigger_jitter = stage_->executor().triggerJitter().snapshot();
   report.step_reramps = stage_->executor().reramps();
@@ -582,10 +736,13 @@ ScanReport Acquisition::run(const ScanOptions& options, const ScanPlan& plan, Fr
     const std::lock_guard lock(shared.error_mutex);
     throw ScanError("scan failed: " + shared.error);
   }
-  report.high_deg.assign(shared.angle_deg.begin(),
-                         shared.angle_deg.begin() + static_cast<long>(plan.high.positions.size()));
-  report.low_deg.assign(shared.angle_deg.begin() + static_cast<long>(plan.high.positions.size()),
-                        shared.angle_deg.end());
+  const auto anglesOf = [&](FringeSet id) {
+    const auto first = shared.angle_deg.begin() + shared.route.firstFrame(id, plan);
+    return std::vector<double>(first, first + static_cast<long>(plan.set(id).positions.size()));
+  };
+  report.high_deg = anglesOf(FringeSet::High);
+  report.low_deg = anglesOf(FringeSet::Low);
+  report.first_set = shared.route.order[0];
   return report;
 }
 

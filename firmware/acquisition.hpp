@@ -22,15 +22,23 @@
 // it already has), then the scan fails; a frame the camera lost without a
 // timeout (a jump of its sequence numbers, for a camera that delivers one
 // frame per exposure) fails it; so do a home switch that
-// never fires, the stage fault input and lost steps (a re-seek of home after
-// the scan). Whatever happens, the stage is disabled and the light is off
-// when run() returns.
+// never fires, the stage fault input and lost steps.
+//
+// The stage homes only when it is not homed (power-up, a fault, an abort).
+// The set nearer to where it stands runs first, so successive scans
+// alternate and each starts where the last ended; the travel between the
+// sets takes the way past home when that costs little, and the home edge it
+// passes checks the step count on the fly. Only a scan that passed no home
+// edge seeks home afterwards to check it (verify_steps). The last set's
+// steps are checked at the next pass, which fails that scan and homes again. Whatever happens, the
+// stage is disabled and the light is off when run() returns.
 #pragma once
 
 #include <array>
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -57,11 +65,26 @@ struct ScanProgress {
   FringeSet set = FringeSet::High;
 };
 
+// Where a scan's time went, on the board's clock.
+struct ScanTimeSplit {
+  std::chrono::nanoseconds homing{0};      // homing (and enabling the stage)
+  std::chrono::nanoseconds travel{0};      // to each set's start
+  std::chrono::nanoseconds sets{0};        // the sets' moves, sweeps, triggers and frames
+  std::chrono::nanoseconds settling{0};    // stop-and-go: waiting for the stage to settle
+  std::chrono::nanoseconds step_check{0};  // seeking home again to check the step count
+};
+
+// The split in seconds, by part: homing, travel, sets, settling, step_check.
+std::map<std::string, double> timeSplitSeconds(const ScanTimeSplit& split);
+
 struct ScanReport {
   std::vector<double> high_deg, low_deg;  // executed angles of the frames
   bool homed = false;                     // this scan homed the stage
+  // The last check of the step count: on the way past home, or a re-seek.
   std::optional<drivers::StepCheck> step_check;
   std::chrono::nanoseconds duration{0};  // on the board's clock
+  ScanTimeSplit split;
+  FringeSet first_set = FringeSet::High;  // the motion set the stage ran first
   // Each set's time from its first trigger to its last frame (high, low).
   std::array<std::chrono::nanoseconds, 2> set_duration{};
   int frames = 0;
@@ -74,6 +97,12 @@ struct ScanReport {
   std::int64_t step_reramps = 0;
   std::chrono::nanoseconds step_slip{0};
 };
+
+// The shortest scan the stage's motion limits allow for a plan in continuous
+// mode, the stage already homed: both sweeps (run-up, range, run-out) and the
+// shorter travel between them, none of it waiting for anything else.
+std::chrono::nanoseconds shortestScan(const ScanOptions& options, const ScanPlan& plan,
+                                      const drivers::StageConfig& stage);
 
 // One exposure of each camera where the stage stands: a checkerboard pair, a
 // snapshot. The light is set to `light` for it and off afterwards.
@@ -115,6 +144,10 @@ class Acquisition {
   // once more; ScanError on a second one or an abort.
   std::vector<cv::Mat> still(const StillOptions& options);
 
+  // The order the next scan of `plan` runs its two motion sets in, from where
+  // the stage stands (from home when it is not homed): the nearer one first.
+  std::array<FringeSet, 2> nextSetOrder(const ScanOptions& options, const ScanPlan& plan) const;
+
   // From any thread: the running scan stops as soon as it can and fails.
   void abort() noexcept;
 
@@ -127,6 +160,7 @@ class Acquisition {
  private:
   void publishStage();
   void armSoftwareTriggers(const std::vector<std::string>& cameras);
+  struct Route;
   struct Shared;
   void motion(const ScanOptions& options, const ScanPlan& plan, Shared& shared);
   void capture(const ScanOptions& options, const ScanPlan& plan, FrameSink& sink, Shared& shared,

@@ -48,7 +48,9 @@ struct ScanOptions {
   double frame_rate_hz = 30;
   double exposure_us = 10000;  // the longest exposure of the cameras used
   double trigger_pulse_us = 10;
-  bool verify_steps = true;  // re-seek home after the scan: lost steps fail it
+  // Check the step count at a home edge: passed on the way, or sought after
+  // the scan when it passed none. Lost steps fail the scan.
+  bool verify_steps = true;
   // The motion thread: SCHED_FIFO priority and mlockall (both when allowed).
   int realtime_priority = 80;
   bool lock_memory = true;

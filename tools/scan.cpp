@@ -23,6 +23,7 @@
 #include "firmware/acquisition.hpp"
 #include "firmware/bundle_phase.hpp"
 #include "firmware/bundle_sink.hpp"
+#include "firmware/peak_memory.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/scan_output.hpp"
 #include "firmware/scan_plan.hpp"
@@ -173,10 +174,13 @@ void runScan(const ScanRequest& request) {
                   {"stage_deg", {{"high", report.high_deg}, {"low", report.low_deg}}}};
   summary["plan"] = firmware::toString(options.plan);
   if (plan.ring) summary["ring"] = firmware::ringLayoutJson(*plan.ring);
+  summary["scan_seconds_split"] = firmware::timeSplitSeconds(report.split);
+  summary["first_set"] = std::string(toString(report.first_set));
   if (report.step_check) {
     summary["step_check"] = {{"expected_edge", report.step_check->expected_edge},
                              {"found_edge", report.step_check->found_edge},
-                             {"lost_steps", report.step_check->lostSteps()}};
+                             {"lost_steps", report.step_check->lostSteps()},
+                             {"passed", report.step_check->passed}};
   }
   if (!request.out.empty()) summary["out"] = request.out;
   if (calib) {
@@ -197,6 +201,7 @@ void runScan(const ScanRequest& request) {
     summary["order_residual"] = firmware::orderResidualJson(result.figures.order_residual);
   }
   summary["timings_ms"] = {{"acquire", acquire_ms}, {"total", total.elapsedMs()}};
+  summary["peak_resident_bytes"] = firmware::peakResidentBytes();
   if (request.json) {
     std::cout << summary.dump() << "\n";
     return;
@@ -207,6 +212,11 @@ void runScan(const ScanRequest& request) {
             << summary["set_seconds"]["high"].get<double>() << " + "
             << summary["set_seconds"]["low"].get<double>() << " s)";
   if (report.retries) std::cout << ", " << report.retries << " retried";
+  const auto& split = summary["scan_seconds_split"];
+  std::cout << "\n  homing " << split["homing"].get<double>() << " s, travel "
+            << split["travel"].get<double>() << " s, sets " << split["sets"].get<double>()
+            << " s, settling " << split["settling"].get<double>() << " s, step check "
+            << split["step_check"].get<double>() << " s";
   std::cout << "\n  step lateness p50/p99/max " << report.step_jitter.p50.count() / 1e3 << "/"
             << report.step_jitter.p99.count() / 1e3 << "/" << report.step_jitter.max.count() / 1e3
             << " us" << (report.realtime ? " (SCHED_FIFO)" : " (normal priority)") << "\n";

@@ -122,6 +122,14 @@ void MetricsWriter::gauge(std::string_view name, std::string_view help, double v
   text_ += std::string(name) + " " + formatMetricValue(value) + "\n";
 }
 
+void MetricsWriter::gauge(std::string_view name, std::string_view help, std::string_view label,
+                          const std::map<std::string, double>& values) {
+  header(name, help, "gauge");
+  for (const auto& [v, x] : values)
+    text_ += std::string(name) + "{" + std::string(label) + "=\"" + escapeLabelValue(v) + "\"} " +
+             formatMetricValue(x) + "\n";
+}
+
 void MetricsWriter::histogram(std::string_view name, std::string_view help,
                               const Histogram::Snapshot& h) {
   header(name, help, "histogram");

@@ -72,6 +72,8 @@ class MetricsWriter {
   void counter(std::string_view name, std::string_view help, std::string_view label,
                const std::map<std::string, std::uint64_t>& values);
   void gauge(std::string_view name, std::string_view help, double value);
+  void gauge(std::string_view name, std::string_view help, std::string_view label,
+             const std::map<std::string, double>& values);
   void histogram(std::string_view name, std::string_view help, const Histogram::Snapshot& h);
   const std::string& text() const { return text_; }
 

@@ -10,6 +10,8 @@
 #include <typeinfo>
 #include <utility>
 
+#include "firmware/peak_memory.hpp"
+
 namespace cylscan::firmware {
 namespace {
 
@@ -181,6 +183,23 @@ AcquisitionFigures acquisitionFrom(const Fields& f) {
   f.read("step_reramps", a.step_reramps);
   if (f.has("trigger_jitter"))
     a.trigger_jitter = jitterFrom(Fields(f.at("trigger_jitter"), "trigger_jitter"));
+  if (f.has("board_seconds_split")) {
+    const Fields split(f.at("board_seconds_split"), "board_seconds_split");
+    for (const char* part : {"homing", "travel", "sets", "settling", "step_check"}) {
+      double seconds = 0;
+      split.read(part, seconds);
+      a.time_split_s[part] = seconds;
+    }
+  }
+  if (f.has("step_check")) {
+    const Fields c(f.at("step_check"), "step_check");
+    drivers::StepCheck check;
+    c.read("expected_edge", check.expected_edge);
+    c.read("found_edge", check.found_edge);
+    c.read("passed", check.passed);
+    a.step_check = check;
+  }
+  f.read("peak_resident_bytes", a.peak_resident_bytes);
   return a;
 }
 
@@ -213,6 +232,9 @@ JitterFigures jitterFigures(const drivers::JitterStats::Snapshot& s) {
 
 AcquisitionFigures acquisitionFigures(const ScanReport& report) {
   AcquisitionFigures a;
+  a.time_split_s = timeSplitSeconds(report.split);
+  a.step_check = report.step_check;
+  a.peak_resident_bytes = peakResidentBytes();
   a.retries = report.retries;
   a.homed = report.homed;
   a.realtime = report.realtime;
@@ -260,6 +282,14 @@ void to_json(json& j, const ScanRecord& r) {
     j["step_jitter"] = jitterJson(a->step_jitter);
     j["step_reramps"] = a->step_reramps;
     j["trigger_jitter"] = jitterJson(a->trigger_jitter);
+    if (!a->time_split_s.empty()) j["board_seconds_split"] = a->time_split_s;
+    if (a->step_check) {
+      j["step_check"] = {{"expected_edge", a->step_check->expected_edge},
+                         {"found_edge", a->step_check->found_edge},
+                         {"lost_steps", a->step_check->lostSteps()},
+                         {"passed", a->step_check->passed}};
+    }
+    if (a->peak_resident_bytes > 0) j["peak_resident_bytes"] = a->peak_resident_bytes;
   }
   if (r.bundle) j["bundle"] = *r.bundle;
 }

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <exception>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -43,6 +44,10 @@ struct AcquisitionFigures {
   JitterFigures step_jitter;
   std::int64_t step_reramps = 0;
   JitterFigures trigger_jitter;
+  // Where the board time went (seconds): homing, travel, sets, settling, step_check.
+  std::map<std::string, double> time_split_s;
+  std::optional<drivers::StepCheck> step_check;
+  std::uint64_t peak_resident_bytes = 0;  // the daemon's VmHWM when the scan ended
 };
 AcquisitionFigures acquisitionFigures(const ScanReport& report);
 

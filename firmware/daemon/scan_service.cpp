@@ -11,6 +11,7 @@
 #include "firmware/bundle_sink.hpp"
 #include "firmware/daemon/log.hpp"
 #include "firmware/daemon/scan_service_jobs.hpp"
+#include "firmware/peak_memory.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/reconstruction.hpp"
 #include "firmware/scan_output.hpp"
@@ -589,6 +590,7 @@ void ScanService::finishDone(const ScanRecord& record, const ScanReport& report)
   std::lock_guard lock(mutex_);
   step_jitter_ = report.step_jitter;
   trigger_jitter_ = report.trigger_jitter;
+  time_split_ = report.split;
   realtime_ = report.realtime;
   if (record.output && record.output->order_residual.samples > 0)
     order_residual_ = record.output->order_residual;
@@ -874,12 +876,21 @@ std::string ScanService::metricsText() const {
   w.counter("cylscan_frames_total", "Frames captured by all scans.", frames_total_.value());
   std::optional<drivers::JitterStats::Snapshot> step, trigger;
   std::optional<algo::OrderResidual> residual;
+  std::optional<ScanTimeSplit> split;
   {
     std::lock_guard lock(mutex_);
     step = step_jitter_;
     trigger = trigger_jitter_;
     residual = order_residual_;
+    split = time_split_;
   }
+  if (split) {
+    w.gauge("cylscan_last_scan_board_seconds",
+            "Where the last scan's time on the head's clock went.", "part",
+            timeSplitSeconds(*split));
+  }
+  w.gauge("cylscan_peak_resident_bytes", "The daemon's peak resident memory (VmHWM).",
+          static_cast<double>(peakResidentBytes()));
   const auto& bounds = defaultLatenessBoundsSeconds();
   w.histogram("cylscan_step_lateness_seconds",
               "Lateness of the step edges of the last scan's motion thread.",

@@ -231,6 +231,7 @@ class ScanService final : public HeadService {
   LabelledCounter scans_total_;
   Histogram scan_duration_;
   std::optional<drivers::JitterStats::Snapshot> step_jitter_, trigger_jitter_;  // last scan
+  std::optional<ScanTimeSplit> time_split_;                                     // last scan
 
   std::thread worker_;
 };

@@ -36,6 +36,10 @@ AcquisitionFigures acquisition() {
   a.step_jitter = {123040, 4.5, 21.0, 60.25};
   a.step_reramps = 2;
   a.trigger_jitter = {10, 3.0, 9.5, 11.0};
+  a.time_split_s = {
+      {"homing", 0.01}, {"travel", 9.5}, {"sets", 1.75}, {"settling", 0.0}, {"step_check", 0.0}};
+  a.step_check = drivers::StepCheck{25, 26, true};
+  a.peak_resident_bytes = 123456789;
   return a;
 }
 
@@ -101,6 +105,10 @@ TEST(ScanRecord, ADoneScanAddsTheOutputsAndTheAcquisitionsFigures) {
     "step_jitter": {"count": 123040, "p50_us": 4.5, "p99_us": 21.0, "max_us": 60.25},
     "step_reramps": 2,
     "trigger_jitter": {"count": 10, "p50_us": 3.0, "p99_us": 9.5, "max_us": 11.0},
+    "board_seconds_split": {"homing": 0.01, "sets": 1.75, "settling": 0.0, "step_check": 0.0,
+                            "travel": 9.5},
+    "step_check": {"expected_edge": 25, "found_edge": 26, "lost_steps": 1, "passed": true},
+    "peak_resident_bytes": 123456789,
     "bundle": "bundle"})");
   // Uncalibrated: no points.
   ScanRecord r = done();

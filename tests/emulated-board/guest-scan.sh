@@ -128,10 +128,11 @@ else
     fail "the scan's step thread ran SCHED_FIFO: realtime '$(json realtime <"$scan")'; warnings: $("$bb" sed -n 's/.*"warnings":\(\[[^]]*\]\).*/\1/p' "$scan")"
   fi
   # Homing: the firmware found home through an edge event of the gpio-sim
-  # line the feeder pulled (the scan's first motion), and re-found it after.
+  # line the feeder pulled (the scan's first motion), and met it again for the
+  # step check (passing it, or seeking it after the scan).
   edges=$(field "$res/feeder-scan.log" home_edges)
   if [ "$state" = done ] && [ "$(json homed <"$scan")" = true ] && [ "${edges:-0}" -ge 2 ]; then
-    pass "homing through real edge events of the home line ($edges edges pulled by the feeder, verify re-seek included)"
+    pass "homing through real edge events of the home line ($edges edges pulled by the feeder, the step check included)"
   else
     fail "homing through the home line's edges: scan $state, homed '$(json homed <"$scan")', $edges edges pulled"
   fi
@@ -195,6 +196,12 @@ fi
 # --- the camera stops: a capture timeout --------------------------------------
 # The feeder queues two frames, then the camera's link goes silent (vivid
 # drops every capture buffer): the daemon's scan fails, saying which frame.
+# A new feeder is a new stage, at its start 2° above home, not where the last
+# scan left it: the daemon starts again and homes, as a head does after power-up
+# (kept running, it would rightly fail the scan for lost steps at home).
+if ! systemctl restart cylscand >"$res/restart.out" 2>&1; then
+  fail "systemctl restart cylscand: $("$bb" cat "$res/restart.out") $(unit_logs)"
+fi
 if ! start_feeder "$res/feeder-stop.log" --stop-after 2; then
   fail "the feeder starts (capture timeout)"
 else

@@ -227,8 +227,9 @@ TEST(RingAcquisition, EveryCameraGetsBothSetsInItsRoleAndTheHeadsPhase) {
   EXPECT_EQ(report.frames, 2 * n);
   EXPECT_EQ(report.retries, 0);
 
-  // (a) N frames of each set for every camera, one set after the other, each
-  // at the executed angles of the motion set whose half the camera faced.
+  // (a) N frames of each set for every camera, one set after the other (in
+  // the order the stage ran the motion sets), each at the executed angles of
+  // the motion set whose half the camera faced.
   for (const std::string& camera : kCameras) {
     SCOPED_TRACE(camera);
     const CameraTruth truth = truthOf(scan.head(), camera, report);
@@ -236,8 +237,9 @@ TEST(RingAcquisition, EveryCameraGetsBothSetsInItsRoleAndTheHeadsPhase) {
     ASSERT_EQ(frames.size(), static_cast<std::size_t>(2 * n));
     for (int i = 0; i < 2 * n; ++i) {
       const auto& f = frames[static_cast<std::size_t>(i)];
-      const FringeSet expected =
-          (i < n) == (truth.first_sweep == FringeSet::High) ? FringeSet::High : FringeSet::Low;
+      const FringeSet motion =
+          (i < n) == (report.first_set == FringeSet::High) ? FringeSet::High : FringeSet::Low;
+      const FringeSet expected = scan.plan.setOf(camera, motion);
       EXPECT_EQ(f.set, expected) << "frame " << i;
       EXPECT_EQ(f.k, i % n);
       const auto& angles = f.set == FringeSet::High ? truth.high_deg : truth.low_deg;
@@ -396,13 +398,18 @@ TEST(RingAcquisition, ALostFrameOfASwappedCameraIsSweptAgain) {
   Scan again(ringBoard(again_dir));
   PhaseSink again_phase(again.plan, {});
   Acquisition again_acquisition(again.board);
+  // The swapped camera's set in the motion set that runs first.
+  const FringeSet lost_set =
+      again.plan.setOf(swapped, again_acquisition.nextSetOrder(again.options, again.plan)[0]);
   try {
     again_acquisition.run(again.options, again.plan, again_phase, [&](const ScanProgress& p) {
       if (p.frames_done == 5) again.head().dropFrames(swapped, 2);
     });
     ADD_FAILURE() << "the scan should fail";
   } catch (const ScanError& error) {
-    EXPECT_NE(std::string(error.what()).find("camera '" + swapped + "': no frame 5 of the low set"),
+    EXPECT_NE(std::string(error.what())
+                  .find("camera '" + swapped + "': no frame 5 of the " +
+                        std::string(toString(lost_set)) + " set"),
               std::string::npos)
         << error.what();
   }
@@ -427,6 +434,38 @@ TEST(RingAcquisition, ACamerasSetsAreAPlanOfTheirOwn) {
   }
   EXPECT_THROW(cameraSetsPlan(scan.plan, "cam45"), std::invalid_argument);
   EXPECT_THROW(cameraSetsPlan(cameraSetsPlan(scan.plan, "main"), "main"), std::invalid_argument);
+}
+
+// The ring plan on a homed head, both modes: no homing, no seek of home, the
+// sweeps alternating, and each scan within 1.2 times the shortest the stage's
+// limits allow for a continuous scan of the plan (stop-and-go adds its
+// settles and its stops, so it is printed, not bounded).
+TEST(RingAcquisition, AScanOnAHomedHeadIsNearTheStagesLimit) {
+  for (const char* mode : {"stop", "continuous"}) {
+    SCOPED_TRACE(mode);
+    TempDir dir;
+    Scan scan(ringBoard(dir, {{"mode = \"stop\"", std::string("mode = \"") + mode + "\""}}));
+    const auto shortest = shortestScan(scan.options, scan.plan, scan.board.profile().stage);
+    Acquisition acquisition(scan.board);
+    std::optional<FringeSet> last_first;
+    for (int i = 0; i < 3; ++i) {
+      PhaseSink phase(scan.plan, {});
+      const ScanReport r = acquisition.run(scan.options, scan.plan, phase);
+      const double ratio =
+          static_cast<double>(r.duration.count()) / static_cast<double>(shortest.count());
+      std::cout << "[ ring     ] " << mode << " scan " << i << ": " << seconds(r.duration) << " s, "
+                << ratio << " x the shortest (" << seconds(shortest) << " s)\n";
+      ASSERT_TRUE(r.step_check) << i;
+      EXPECT_TRUE(r.step_check->passed) << i;
+      if (i > 0) {
+        EXPECT_FALSE(r.homed) << i;
+        EXPECT_EQ(r.split.step_check.count(), 0) << i;
+        EXPECT_NE(r.first_set, *last_first) << i;
+        if (std::string(mode) == "continuous") EXPECT_LE(ratio, 1.2) << i;
+      }
+      last_first = r.first_set;
+    }
+  }
 }
 
 }  // namespace cylscan::firmware

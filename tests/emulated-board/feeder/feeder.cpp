@@ -29,6 +29,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -40,6 +41,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -509,27 +511,44 @@ int runAngles(const Args& a) {
   const auto triggers = logLines(a.positional[1], "trigger");
   const double steps_per_deg = std::stod(a.get("steps-per-deg"));
   const double tolerance = std::stod(a.get("tolerance-steps"));
-  std::vector<double> executed;
-  for (FringeSet id : kFringeSets)
-    for (double d : bundle.info().set(id).stage_deg)
-      executed.push_back(d);
-  if (executed.size() != triggers.size()) {
-    std::cout << "the bundle has " << executed.size() << " frames, the feeder saw "
-              << triggers.size() << " trigger pulses\n";
-    return 1;
+  // The stage runs the nearer set first and the firmware counts within one
+  // turn, from its home edge; the feeder counts from power-up. So the frames
+  // meet the triggers in one of the two set orders, with one offset modulo a
+  // turn for the whole scan, and the same steps between any two frames.
+  const double turn = 360.0 * steps_per_deg;
+  const auto wrap = [&](double x) { return x - turn * std::round(x / turn); };
+  struct Match {
+    std::string order;
+    double offset = 0;
+    double worst = std::numeric_limits<double>::infinity();
+  };
+  std::optional<Match> best;
+  for (const auto& order :
+       {std::array{FringeSet::High, FringeSet::Low}, std::array{FringeSet::Low, FringeSet::High}}) {
+    std::vector<double> executed;
+    for (FringeSet id : order)
+      for (double d : bundle.info().set(id).stage_deg)
+        executed.push_back(d);
+    if (executed.size() != triggers.size()) {
+      std::cout << "the bundle has " << executed.size() << " frames, the feeder saw "
+                << triggers.size() << " trigger pulses\n";
+      return 1;
+    }
+    Match m;
+    m.order = std::string(toString(order[0])) + " set first";
+    m.offset = wrap(executed[0] * steps_per_deg - std::stod(triggers[0].at("position")));
+    m.worst = 0;
+    for (std::size_t i = 0; i < executed.size(); ++i) {
+      const double fw = executed[i] * steps_per_deg;
+      const double seen = std::stod(triggers[i].at("position"));
+      m.worst = std::max(m.worst, std::abs(wrap(fw - seen - m.offset)));
+    }
+    if (!best || m.worst < best->worst) best = m;
   }
-  // The firmware counts from its home edge, the feeder from power-up: one
-  // offset for the whole scan, and the same steps between any two frames.
-  const double offset = executed[0] * steps_per_deg - std::stod(triggers[0].at("position"));
-  double worst = 0;
-  for (std::size_t i = 0; i < executed.size(); ++i) {
-    const double fw = executed[i] * steps_per_deg;
-    const double seen = std::stod(triggers[i].at("position"));
-    worst = std::max(worst, std::abs(fw - seen - offset));
-  }
-  std::cout << executed.size() << " frames; firmware minus feeder " << offset
-            << " steps (home edge), largest further difference " << worst << " steps\n";
-  return std::abs(offset) <= tolerance && worst <= 0.5 ? 0 : 1;
+  std::cout << triggers.size() << " frames (" << best->order << "); firmware minus feeder "
+            << best->offset << " steps (home edge, modulo a turn), largest further difference "
+            << best->worst << " steps\n";
+  return std::abs(best->offset) <= tolerance && best->worst <= 0.5 ? 0 : 1;
 }
 
 int runCompare(const Args& a) {
