@@ -7,10 +7,11 @@
 //   A, B  unloaded — B checks that the paced head is deterministic per seed
 //         (phase.png and depth.tiff byte for byte), and both give the
 //         unloaded step lateness;
-//   C     loaded — for 30 s wrk hammers GET /api/v1/status and /metrics on
+//   C     loaded — wrk hammers GET /api/v1/status and /metrics on
 //         127.0.0.1 with 100 connections, while 32 idle clients hold
 //         /api/v1/events open and 8 slow clients read /metrics one byte a
-//         second.
+//         second, for 70 % of A's scan time (at most 30 s), so the load
+//         starts and ends while C runs whatever the stage's speed.
 // C must complete with every frame and no retry, the same phase.png and
 // depth.tiff bytes as A, and a step lateness p99 within
 //   max(2 × unloaded p99, unloaded p99 + 200 µs)
@@ -38,6 +39,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <fstream>
@@ -62,7 +64,15 @@ constexpr bool kSanitized = CYLSCAND_SANITIZED;
 constexpr int kIdleEventClients = 32;
 constexpr int kSlowClients = 8;
 constexpr int kWrkConnections = 100;
-constexpr int kWrkSeconds = 30;
+constexpr int kMaxLoadSeconds = 30;
+
+// The load's length for a scan that takes `scan_s` unloaded. The daemon's
+// start, the side clients' connections and wrk's own start take a few
+// seconds of the scan before the load begins; 70 % leaves them room and
+// still loads every part of the scan after homing.
+int loadSeconds(double scan_s) {
+  return std::clamp(static_cast<int>(0.7 * scan_s), 5, kMaxLoadSeconds);
+}
 
 std::string replaceOnce(std::string text, const std::string& from, const std::string& to) {
   const auto at = text.find(from);
@@ -186,8 +196,8 @@ struct WrkFigures {
   std::string text;
 };
 
-// wrk for kWrkSeconds on /api/v1/status and /metrics in turn (a Lua script).
-WrkFigures runWrk(const TempDir& dir, const std::string& url) {
+// wrk for `seconds` on /api/v1/status and /metrics in turn (a Lua script).
+WrkFigures runWrk(const TempDir& dir, const std::string& url, int seconds) {
   const fs::path script = dir.write("paths.lua",
                                     "local paths = {\"/api/v1/status\", \"/metrics\"}\n"
                                     "local i = 0\n"
@@ -196,8 +206,8 @@ WrkFigures runWrk(const TempDir& dir, const std::string& url) {
                                     "  return wrk.format(\"GET\", paths[i % 2 + 1])\n"
                                     "end\n");
   const std::string command = "wrk -t2 -c" + std::to_string(kWrkConnections) + " -d" +
-                              std::to_string(kWrkSeconds) + "s --latency -s " + script.string() +
-                              " " + url + " 2>&1";
+                              std::to_string(seconds) + "s --latency -s " + script.string() + " " +
+                              url + " 2>&1";
   WrkFigures f;
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) throw std::runtime_error("cannot run: " + command);
@@ -237,7 +247,8 @@ struct ScanRun {
   int status_during = 0;  // our own status polls answered 200 during the load
 };
 
-ScanRun scanOnce(const fs::path& board, bool loaded) {
+// One scan by a fresh daemon; `load_s` > 0 loads it for that many seconds.
+ScanRun scanOnce(const fs::path& board, int load_s = 0) {
   DaemonSetup setup;
   setup.board = board;
   QuickDaemon daemon(std::move(setup));
@@ -246,14 +257,14 @@ ScanRun scanOnce(const fs::path& board, bool loaded) {
   const double stolen_before = stolenSeconds();
   const std::string id = startScan(client, {{"save_bundle", false}});
   if (id.empty()) return run;
-  if (loaded) {
+  if (load_s > 0) {
     TempDir wrk_dir;
-    SideClients side(daemon.process().port(), kWrkSeconds);
-    run.wrk = runWrk(wrk_dir, client.baseUrl());
+    SideClients side(daemon.process().port(), load_s);
+    run.wrk = runWrk(wrk_dir, client.baseUrl(), load_s);
     side.join();
     run.idle_held = side.idleAnswered();
     run.slow_held = side.slowHeld();
-    run.slow_steady = side.slowSteady(kWrkSeconds);
+    run.slow_steady = side.slowSteady(load_s);
     // Right after wrk exits, its closed connections may still count against
     // the per-address limit until the daemon's poll loop reaps them, and a
     // new connection is then closed unanswered: ask again for up to 2 s.
@@ -300,14 +311,15 @@ TEST(DaemonLoad, ScanUnderHttpLoadMatchesAnUnloadedScan) {
   TempDir boards;
   const fs::path board = pacedBoard(boards);
 
-  const ScanRun a = scanOnce(board, false);
+  const ScanRun a = scanOnce(board);
   expectComplete(a, "unloaded scan A");
-  const ScanRun b = scanOnce(board, false);
+  const ScanRun b = scanOnce(board);
   expectComplete(b, "unloaded scan B");
   ASSERT_TRUE(a.phase_png == b.phase_png && a.depth_tiff == b.depth_tiff)
       << "two unloaded paced scans of the same seed differ: the head is not deterministic "
          "per seed, so 'the same phase' cannot be byte for byte";
-  const ScanRun c = scanOnce(board, true);
+  const int load_s = loadSeconds(a.scan.value("duration_s", 0.0));
+  const ScanRun c = scanOnce(board, load_s);
   expectComplete(c, "loaded scan C");
   EXPECT_TRUE(c.phase_png == a.phase_png) << "the loaded scan's phase.png differs";
   EXPECT_TRUE(c.depth_tiff == a.depth_tiff) << "the loaded scan's depth.tiff differs";
@@ -319,7 +331,7 @@ TEST(DaemonLoad, ScanUnderHttpLoadMatchesAnUnloadedScan) {
     // is over the bound, an unloaded scan right after it tells the load's
     // delay from the machine's: the load still fails the check when that
     // scan is as quiet as A and B were.
-    const ScanRun d = scanOnce(board, false);
+    const ScanRun d = scanOnce(board);
     expectComplete(d, "unloaded scan D");
     std::printf(
         "[ load     ] loaded p99 %.0f us over the bound %.0f us; unloaded scan D after it: "
@@ -329,8 +341,8 @@ TEST(DaemonLoad, ScanUnderHttpLoadMatchesAnUnloadedScan) {
     bound = std::max(2 * unloaded_p99, unloaded_p99 + 200.0);
   }
   std::printf("[ load     ] wrk %d connections %d s: %.0f requests/s, latency p50 %s p99 %s; %s\n",
-              kWrkConnections, kWrkSeconds, c.wrk.requests_per_s, c.wrk.p50.c_str(),
-              c.wrk.p99.c_str(), c.wrk.errors.empty() ? "no errors" : c.wrk.errors.c_str());
+              kWrkConnections, load_s, c.wrk.requests_per_s, c.wrk.p50.c_str(), c.wrk.p99.c_str(),
+              c.wrk.errors.empty() ? "no errors" : c.wrk.errors.c_str());
   std::printf(
       "[ load     ] %d/%d idle event streams answered, %d/%d slow readers (%d read a byte "
       "every second)\n",
