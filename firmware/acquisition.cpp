@@ -126,15 +126,20 @@ class RunningCameras {
 
 // Continuous mode: the sweep of one motion set, always upwards so that the
 // backlash is taken up the same way for every frame of every scan.
-drivers::SweepRequest sweepRequest(const ScanOptions& options, const SetPlan& set) {
+drivers::SweepRequest sweepRequest(const ScanOptions& options, const SetPlan& set,
+                                   const drivers::StageConfig& stage) {
   const int n = static_cast<int>(set.positions.size());
   drivers::SweepRequest request;
   request.direction = 1;
   // One frame step per frame period: the set's own step (θ/N for a sets
-  // plan; a ring plan's common Δ, which differs from θ/N).
+  // plan; a ring plan's common Δ, which differs from θ/N), unless that is
+  // faster than the stage may turn. The cameras are triggered (run() refuses
+  // free-running ones), so a slower sweep only triggers them less often.
   const double frame_step_deg = set.step_deg > 0 ? set.step_deg : set.period_deg / n;
-  request.speed_deg_s = options.sweep_speed_deg_s > 0 ? options.sweep_speed_deg_s
-                                                      : frame_step_deg * options.frame_rate_hz;
+  request.speed_deg_s =
+      options.sweep_speed_deg_s > 0
+          ? options.sweep_speed_deg_s
+          : std::min(frame_step_deg * options.frame_rate_hz, stage.max_speed_deg_s);
   request.range_steps = set.positions.back() - set.positions.front();
   for (const auto p : set.positions)
     request.trigger_offsets.push_back(p - set.positions.front());
@@ -152,7 +157,7 @@ struct SetSpan {
 
 SetSpan spanOf(const ScanOptions& options, const SetPlan& set, const drivers::StageConfig& stage) {
   if (options.mode == ScanMode::StopAndGo) return {set.positions.front(), set.positions.back()};
-  const drivers::SweepPlan sweep = drivers::planSweep(stage, sweepRequest(options, set));
+  const drivers::SweepPlan sweep = drivers::planSweep(stage, sweepRequest(options, set, stage));
   return {set.positions.front() - sweep.run_up_steps, set.positions.back() + sweep.run_out_steps};
 }
 
@@ -445,7 +450,7 @@ void Acquisition::motion(const ScanOptions& options, const ScanPlan& plan, Share
           if (ack == Ack::kStop) return;
         }
       } else {
-        const drivers::SweepRequest request = sweepRequest(options, set);
+        const drivers::SweepRequest request = sweepRequest(options, set, board_.profile().stage);
         for (;;) {
           const drivers::PreparedSweep sweep = stage_->prepareSweep(set.positions.front(), request);
           for (int k = 0; k < n; ++k)
@@ -627,7 +632,8 @@ std::chrono::nanoseconds shortestScan(const ScanOptions& options, const ScanPlan
   };
   nanoseconds sweeps{0};
   for (const FringeSet id : kFringeSets)
-    sweeps += duration(drivers::planSweep(stage, sweepRequest(continuous, plan.set(id))).schedule);
+    sweeps +=
+        duration(drivers::planSweep(stage, sweepRequest(continuous, plan.set(id), stage)).schedule);
   const SetSpan high = spanOf(continuous, plan.high, stage);
   const SetSpan low = spanOf(continuous, plan.low, stage);
   const std::optional<std::int64_t> turn = stage.stepsPerTurn();

@@ -43,7 +43,8 @@ struct ScanOptions {
   double settle_ms = 100;
   double frame_timeout_ms = 1000;
   // Continuous mode: the constant speed; 0 = one frame step per frame period
-  // of the slowest camera (`frame_rate_hz`).
+  // of the slowest camera (`frame_rate_hz`), or the stage's top speed when
+  // that is lower.
   double sweep_speed_deg_s = 0;
   double frame_rate_hz = 30;
   double exposure_us = 10000;  // the longest exposure of the cameras used
