@@ -36,7 +36,7 @@ struct ScanProfile {
   double frame_timeout_ms = 1000.0;
   std::optional<double> settle_ms;  // overrides [stage] settle_ms
   bool save_bundle = true;
-  bool verify_steps = true;  // re-seek home after a scan: lost steps fail it
+  bool verify_steps = true;  // lost steps fail the scan: a home edge passed, else a re-seek
   // The projector's slot intervals: θh (high set) and θl (low set).
   double period_high_deg = 5.0;
   double period_low_deg = 5.625;

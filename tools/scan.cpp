@@ -250,7 +250,8 @@ void addScanCommand(CLI::App& app) {
                   "of a ring profile)");
   cmd->add_option("--phase", request->phase, "absolute phase for --cloud: fused or high")
       ->check(CLI::IsMember({"high", "fused"}));
-  cmd->add_flag("--no-verify", request->no_verify, "skip the re-seek of home after the scan");
+  cmd->add_flag("--no-verify", request->no_verify,
+                "no seek of home after a scan that passed no home edge");
   cmd->add_flag("--json", request->json, "print the summary as one JSON object");
   cmd->callback([request] { runScan(*request); });
 }
