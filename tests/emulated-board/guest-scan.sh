@@ -103,6 +103,24 @@ else
   fail "cylscand answers on its API: $("$bb" cat "$res/status.err")"
 fi
 
+# The daemon's memory without the virtual head in its process (kB): what a
+# small board must hold. VmHWM is the peak so far, VmRSS what it holds now.
+daemon_pid() { systemctl show -p MainPID --value cylscand 2>/dev/null; }
+rss() {
+  "$bb" sed -n -e 's/^VmHWM:[[:space:]]*\([0-9]*\) kB/VmHWM \1 kB/p' \
+    -e 's/^VmRSS:[[:space:]]*\([0-9]*\) kB/VmRSS \1 kB/p' "/proc/$(daemon_pid)/status" 2>/dev/null |
+    "$bb" tr '\n' ' '
+}
+# Where it is: the five largest mappings by resident set (kB; "anon" sums
+# the large allocations, the threads' arenas and their stacks).
+largest_mappings() {
+  "$bb" awk '/^[0-9a-f]+-[0-9a-f]+ / { name = ($6 == "") ? "anon" : $6 }
+    /^Rss:/ { rss[name] += $2 }
+    END { for (n in rss) print rss[n], n }' "/proc/$(daemon_pid)/smaps" 2>/dev/null |
+    "$bb" sort -rn | "$bb" head -n 5 | "$bb" tr '\n' ';'
+}
+echo "INFO cylscand idle: $(rss); largest: $(largest_mappings)"
+
 # --- a full scan through the kernel's drivers ---------------------------------
 if ! start_feeder "$res/feeder-scan.log"; then
   fail "the feeder starts: $("$bb" tail -n 3 "$res/feeder.err" | "$bb" tr '\n' ' ')"
@@ -121,6 +139,7 @@ else
   else
     fail "a full scan through cylscand's API (scan '${id:-none}', state $state): $("$bb" head -c 400 "$scan" 2>/dev/null) $(unit_logs)"
   fi
+  echo "INFO cylscand after the scan: $(rss); largest: $(largest_mappings); the scan's peak resident set $(json peak_resident_bytes <"$scan") bytes"
   echo "INFO the scan's step executor: $("$bb" sed -n 's/.*"step_jitter":\({[^}]*}\).*/\1/p' "$scan"), re-ramps $(json step_reramps <"$scan")"
   if [ "$(json realtime <"$scan")" = true ]; then
     pass "the scan's step thread ran SCHED_FIFO (the unit's ambient CAP_SYS_NICE)"
