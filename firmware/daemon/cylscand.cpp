@@ -19,6 +19,7 @@
 #include <iostream>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -79,9 +80,11 @@ int waitForStop(const sigset_t& signals) {
 // is reported and ends the daemon with 1 instead of escaping main.
 int main(int argc, char** argv) try {
   CLI::App app{"cylscand: the daemon of the cylscan scanning head (HTTP API, docs/http-api.md)"};
-  std::string config, board, listen, data, token, web_root, log_level;
-  auto* o_config = app.add_option("--config", config,
-                                  "cylscan.toml (default /etc/cylscan/cylscan.toml when present)");
+  std::vector<std::string> configs;
+  std::string board, listen, data, token, web_root, log_level;
+  app.add_option("--config", configs,
+                 "cylscan.toml (default /etc/cylscan/cylscan.toml when present); "
+                 "repeat it to lay files over each other in order");
   auto* o_board = app.add_option("--board", board, "board profile folder");
   auto* o_listen =
       app.add_option("--listen", listen, "ADDRESS:PORT ([::1]:8080 for IPv6; port 0 = any)");
@@ -98,7 +101,7 @@ int main(int argc, char** argv) try {
   }
 
   DaemonFlags flags;
-  if (o_config->count()) flags.config = config;
+  flags.configs.assign(configs.begin(), configs.end());
   if (o_board->count()) flags.board = board;
   if (o_listen->count()) flags.listen = listen;
   if (o_data->count()) flags.data_dir = data;

@@ -177,9 +177,9 @@ DaemonConfig resolveDaemonConfig(const DaemonFlags& flags, const DaemonDefaults&
   c.data_dir = defaults.data_dir;
   c.web_root = defaults.web_root;
   std::error_code ec;
-  if (flags.config)
-    c = loadDaemonConfig(*flags.config, std::move(c));
-  else if (!system_config.empty() && fs::exists(system_config, ec))
+  for (const fs::path& file : flags.configs)
+    c = loadDaemonConfig(file, std::move(c));
+  if (flags.configs.empty() && !system_config.empty() && fs::exists(system_config, ec))
     c = loadDaemonConfig(system_config, std::move(c));
   const auto nonEmpty = [](const fs::path& p, const char* flag) {
     if (p.empty()) throw ConfigError(flag, 0, "", "must not be empty");

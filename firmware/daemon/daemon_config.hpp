@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "drivers/toml_reader.hpp"
 
@@ -81,14 +82,17 @@ DaemonConfig loadDaemonConfig(const std::filesystem::path& file, DaemonConfig ba
 
 // The command line (every flag optional).
 struct DaemonFlags {
-  std::optional<std::filesystem::path> config, board, data_dir, web_root;
+  // Each --config in turn over the last: a later file sets only its own keys
+  // (an image lays its per-head settings over the packaged file this way).
+  std::vector<std::filesystem::path> configs;
+  std::optional<std::filesystem::path> board, data_dir, web_root;
   std::optional<std::string> listen, token, log_level;
 };
 
 inline constexpr std::string_view kSystemConfigFile = "/etc/cylscan/cylscan.toml";
 
-// The defaults, then the config file (--config, else `system_config` when it
-// exists), then the flags. ConfigError for any fault, and when none of them
+// The defaults, then the config files (every --config in order, else
+// `system_config` when it exists), then the flags. ConfigError for any fault, and when none of them
 // gives a board.
 DaemonConfig resolveDaemonConfig(const DaemonFlags& flags, const DaemonDefaults& defaults,
                                  const std::filesystem::path& system_config = kSystemConfigFile);

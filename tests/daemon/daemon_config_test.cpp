@@ -138,7 +138,7 @@ TEST(DaemonConfig, FlagsOverrideTheFile) {
   TempDir dir;
   const fs::path file = dir.write("cylscan.toml", kFull);
   DaemonFlags flags;
-  flags.config = file;
+  flags.configs = {file};
   flags.board = "/flag/board";
   flags.listen = "127.0.0.1:0";
   flags.data_dir = "/flag/data";
@@ -181,8 +181,30 @@ TEST(DaemonConfig, WithoutFileOrFlagsTheDefaultsAndTheSystemFile) {
   EXPECT_EQ(c.listen.port, 9000);
 
   DaemonFlags missing;
-  missing.config = dir.path() / "nope.toml";
+  missing.configs = {dir.path() / "nope.toml"};
   EXPECT_THROW(resolveDaemonConfig(missing, defaults, system), ConfigError);
+}
+
+// An image lays the head's own settings (token, listen address) over the
+// packaged file: the later file sets only its keys, and the system file is
+// not read when files are named.
+TEST(DaemonConfig, LaterConfigFilesSetOnlyTheirOwnKeys) {
+  TempDir dir;
+  const fs::path packaged = dir.write("cylscan.toml", kFull);
+  const fs::path head =
+      dir.write("head.toml", "[daemon]\ntoken = \"t0k3n\"\nlisten = \"0.0.0.0:80\"\n");
+  const fs::path system = dir.write("system.toml", "[retention]\nmax_scans = 3\n");
+  DaemonFlags flags;
+  flags.configs = {packaged, head};
+  const DaemonConfig c = resolveDaemonConfig(flags, {"/d/board", "/d/data", "/d/web"}, system);
+  EXPECT_EQ(c.token, "t0k3n");
+  EXPECT_EQ(toString(c.listen), "0.0.0.0:80");
+  EXPECT_EQ(c.retention.max_scans, 7u);  // the packaged file's, not the system file's
+  EXPECT_EQ(c.scan.frames, 12);
+  EXPECT_EQ(c.file, head);
+
+  flags.configs = {head, packaged};  // the other way round, the packaged file wins
+  EXPECT_NE(resolveDaemonConfig(flags, {"/d/board", "/d/data", "/d/web"}, system).token, "t0k3n");
 }
 
 TEST(DaemonConfig, TheVirtualHeadDefaultsOfABuildTree) {
