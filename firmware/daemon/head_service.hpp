@@ -103,6 +103,8 @@ class HeadService {
 
   // GET /api/v1/status.
   virtual nlohmann::json status() const = 0;
+  // GET /api/v1/system: the version, host name, booted slot and data space.
+  virtual nlohmann::json system() const = 0;
 
   // POST /api/v1/scans: starts a scan with `options` (a JSON object, may be
   // empty) and returns its id at once. ServiceError 400/409/503/507.

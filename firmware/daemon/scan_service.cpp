@@ -11,6 +11,7 @@
 #include "firmware/bundle_sink.hpp"
 #include "firmware/daemon/log.hpp"
 #include "firmware/daemon/scan_service_jobs.hpp"
+#include "firmware/daemon/system_info.hpp"
 #include "firmware/peak_memory.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/reconstruction.hpp"
@@ -709,6 +710,10 @@ json ScanService::status() const {
           {"stage", stage},
           {"light", light},
           {"disk_free_bytes", disk_free}};
+}
+
+json ScanService::system() const {
+  return SystemInfo(options_.version, options_.data_dir).report();
 }
 
 json ScanService::diskFreeBytes() const {

@@ -80,6 +80,7 @@ class ScanService final : public HeadService {
   std::uint64_t scanEstimateBytes(const nlohmann::json& options) const;
 
   nlohmann::json status() const override;
+  nlohmann::json system() const override;
   std::string startScan(const nlohmann::json& options) override;
   nlohmann::json listScans() const override;
   std::optional<nlohmann::json> scan(std::string_view id) const override;

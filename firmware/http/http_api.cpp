@@ -694,6 +694,8 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
   switch (r.route.endpoint) {
     case Endpoint::Status:
       return jsonReply(200, service.status());
+    case Endpoint::System:
+      return jsonReply(200, service.system());
     case Endpoint::Scans: {
       if (get) return jsonReply(200, service.listScans());
       const std::string id = service.startScan(bodyObject(r.body, json::object()));

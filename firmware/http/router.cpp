@@ -142,6 +142,9 @@ Route route(std::string_view method, std::string_view path) {
     if (what == "status" && s.size() == 3) {
       return withMethods(Endpoint::Status, method, true, false, false, false);
     }
+    if (what == "system" && s.size() == 3) {
+      return withMethods(Endpoint::System, method, true, false, false, false);
+    }
     if (what == "checks" && s.size() == 3) {
       return withMethods(Endpoint::Checks, method, true, true, false, false);
     }

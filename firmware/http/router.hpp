@@ -16,6 +16,7 @@ namespace cylscan::firmware::http {
 enum class Endpoint {
   None,                 // no such path (404) or a refused path (400)
   Status,               // /api/v1/status
+  System,               // /api/v1/system
   Scans,                // /api/v1/scans
   Scan,                 // /api/v1/scans/{id}
   ScanFile,             // /api/v1/scans/{id}/{name}

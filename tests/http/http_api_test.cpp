@@ -92,6 +92,15 @@ TEST_F(HttpApiTest, StatusNeedsNoToken) {
   EXPECT_EQ(curlRequest("HEAD", url("/api/v1/status")).status, 200);
 }
 
+// The system report names the machine: it needs the token.
+TEST_F(HttpApiTest, SystemNeedsTheToken) {
+  start();
+  EXPECT_EQ(get("/api/v1/system", false).status, 401);
+  const HttpResult r = get("/api/v1/system");
+  EXPECT_EQ(r.status, 200);
+  EXPECT_EQ(r.bodyJson(), service.system());
+}
+
 TEST_F(HttpApiTest, MissingWrongOrMisplacedTokensAre401) {
   start();
   const auto with = [&](const std::string& header, const std::string& path = "/api/v1/scans") {

@@ -153,6 +153,7 @@ class FakeService : public firmware::HeadService {
     std::lock_guard lock(mutex);
     return status_json;
   }
+  json system() const override { return {{"version", "0.0.0-test"}, {"slot", "b"}}; }
   std::string startScan(const json& options) override {
     std::lock_guard lock(mutex);
     ++start_calls;

@@ -20,6 +20,8 @@ namespace {
 
 TEST(Router, KnownPathsGiveTheirEndpoints) {
   EXPECT_EQ(route("GET", "/api/v1/status").endpoint, Endpoint::Status);
+  EXPECT_EQ(route("GET", "/api/v1/system").endpoint, Endpoint::System);
+  EXPECT_EQ(route("POST", "/api/v1/system").status, 405);
   EXPECT_EQ(route("GET", "/api/v1/scans").endpoint, Endpoint::Scans);
   EXPECT_EQ(route("POST", "/api/v1/scans").endpoint, Endpoint::Scans);
   EXPECT_EQ(route("GET", "/api/v1/events").endpoint, Endpoint::Events);
@@ -109,6 +111,7 @@ TEST(Router, StaticPaths) {
 
 TEST(Router, TokenIsNeededEverywhereButStatusAndThePage) {
   EXPECT_FALSE(needsToken(Endpoint::Status));
+  EXPECT_TRUE(needsToken(Endpoint::System));
   EXPECT_FALSE(needsToken(Endpoint::Static));
   for (const auto e : {Endpoint::Scans, Endpoint::Scan, Endpoint::ScanFile, Endpoint::Calibration,
                        Endpoint::CalibrationFile, Endpoint::Events, Endpoint::Metrics}) {

@@ -1,0 +1,50 @@
+// SPDX-License-Identifier: Apache-2.0
+// The system report: the booted slot from the kernel command line, the host
+// name and the data file system's size.
+#include "firmware/daemon/system_info.hpp"
+
+#include <unistd.h>
+
+#include <array>
+
+#include <gtest/gtest.h>
+
+#include "tests/support/temp_dir.hpp"
+
+namespace cylscan::firmware {
+namespace {
+
+using test_support::TempDir;
+
+TEST(SystemInfo, TheBootedSlotIsReadFromTheKernelCommandLine) {
+  EXPECT_EQ(bootedSlot("console=ttyAMA0 rauc.slot=a quiet\n"), "a");
+  EXPECT_EQ(bootedSlot("rauc.slot=b"), "b");
+  EXPECT_EQ(bootedSlot("root=/dev/vda2 quiet"), std::nullopt);
+  EXPECT_EQ(bootedSlot("rauc.slot=c"), std::nullopt);  // not a slot of an image
+  EXPECT_EQ(bootedSlot("xrauc.slot=a"), std::nullopt);
+  EXPECT_EQ(bootedSlot(""), std::nullopt);
+}
+
+TEST(SystemInfo, ReportsTheMachine) {
+  TempDir dir;
+  const auto cmdline = dir.write("cmdline", "console=ttyAMA0 rauc.slot=b\n");
+  const nlohmann::json r = SystemInfo("1.2.3", dir.path(), cmdline).report();
+  EXPECT_EQ(r["version"], "1.2.3");
+  EXPECT_EQ(r["slot"], "b");
+  std::array<char, 256> name{};
+  ASSERT_EQ(gethostname(name.data(), name.size() - 1), 0);
+  EXPECT_EQ(r["hostname"], std::string(name.data()));
+  ASSERT_TRUE(r["data"].is_object());
+  EXPECT_GT(r["data"]["total_bytes"].get<std::uint64_t>(), 0u);
+  EXPECT_LE(r["data"]["free_bytes"].get<std::uint64_t>(),
+            r["data"]["total_bytes"].get<std::uint64_t>());
+
+  // Outside an image, and with a data folder that is gone.
+  const nlohmann::json bare =
+      SystemInfo("1.2.3", dir.path() / "gone", dir.path() / "no-cmdline").report();
+  EXPECT_TRUE(bare["slot"].is_null());
+  EXPECT_TRUE(bare["data"].is_null());
+}
+
+}  // namespace
+}  // namespace cylscan::firmware
