@@ -31,16 +31,10 @@ here=$root/tests/emulated-board
 cache=${EMULATED_CACHE:-$root/build/emulated-cache}
 mkdir -p "$cache"
 cd "$root"
-export DEBIAN_FRONTEND=noninteractive
 t0=$SECONDS
 step() { printf '\n== emulated-board: %s (%ds)\n' "$1" $((SECONDS - t0)); }
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
-
-# The kernel: Debian bookworm-backports' 6.12 for arm64.
-kabi=${EMULATED_KERNEL_ABI:-6.12.95+deb12}
-kver=$kabi-arm64
-mirror=${CYLSCAN_DEBIAN_MIRROR:-http://deb.debian.org/debian}
+# shellcheck source=toolchain/target.sh
+. "$root/toolchain/target.sh"
 
 jobs_pids=()
 qpid=""
@@ -62,14 +56,7 @@ step "host packages"
 # 6.12 ABIs, bookworm-security's).
 scripts/enable-backports.sh
 toolchain/install-cross.sh aarch64
-need=()
-for p in qemu-system-arm dwarves xz-utils cpio kmod bc libelf-dev; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
-done
-if [ "${#need[@]}" -gt 0 ]; then
-  $SUDO apt-get update -q
-  $SUDO apt-get install -y -q --no-install-recommends "${need[@]}"
-fi
+"$root/toolchain/apt-install-missing.sh" qemu-system-arm dwarves xz-utils cpio kmod bc libelf-dev
 sysroot=$root/build/sysroot-aarch64
 toolchain/make-sysroot.sh aarch64 "$sysroot"
 
@@ -110,17 +97,7 @@ if [ -z "$pkgdir" ]; then
   if [ -f "$root/build/cross-aarch64/CMakeCache.txt" ]; then pkgdir=$root/build/cross-aarch64; fi
 fi
 pkgdir=$(realpath -m "$pkgdir")
-build_package() {
-  local launcher=()
-  if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
-  cmake --preset aarch64 -B "$pkgdir" "${launcher[@]}" -DCYLSCAN_SYSROOT="$sysroot" \
-    -DCYLSCAN_BUILD_TESTS=ON -DCYLSCAN_BUILD_WEB=OFF -DCYLSCAN_WITH_SIM=ON \
-    -DCMAKE_SKIP_INSTALL_ALL_DEPENDENCY=ON >/dev/null
-  cmake --build "$pkgdir" -j"$(nproc)" --target cylscan cylscand cylscan_emulated_feeder
-  rm -f "$pkgdir"/package/cylscan_*_arm64.deb
-  (cd "$pkgdir" && cpack -G DEB -B "$pkgdir/package" >/dev/null)
-  ls "$pkgdir"/package/cylscan_*_arm64.deb
-}
+build_package() { "$root/toolchain/make-deb.sh" "$pkgdir" "$sysroot" cylscan_emulated_feeder; }
 
 # The guest's root file system. Its packages: the .deb's Depends as the last
 # build recorded them (or, the first time, the list below: what cylscan's
@@ -146,26 +123,12 @@ make_rootfs() { # make_rootfs PACKAGES
   mmdebstrap --mode=root --arch=arm64 --variant=extract --include="$want" bookworm "$rootfs" \
     "deb $mirror bookworm main" "deb $mirror bookworm-updates main" \
     "deb $mirror bookworm-backports main"
-  # What the extract variant leaves to maintainer scripts: mount points, and
-  # the BLAS/LAPACK alternatives OpenCV links (as toolchain/make-sysroot.sh).
-  mkdir -p "$rootfs"/{proc,sys,dev,run,tmp,var/tmp}
-  # The accounts base-passwd's postinst would install (systemd-sysusers adds
-  # the system users of the packages, cylscan's among them, at boot).
-  for f in passwd group; do
-    [ -s "$rootfs/etc/$f" ] || cp "$rootfs/usr/share/base-passwd/$f.master" "$rootfs/etc/$f"
-  done
+  # What the extract variant leaves to maintainer scripts (systemd-sysusers
+  # adds the system users of the packages, cylscan's among them, at boot).
+  "$root/toolchain/rootfs-fixups.sh" "$rootfs"
   # A provisioned board has its machine id (without one systemd would run
   # its interactive first-boot setup on the console).
   echo 4d3c0a5e2b1f4e6a9c8d7b6a5f4e3d2c >"$rootfs/etc/machine-id"
-  local libdir=$rootfs/usr/lib/aarch64-linux-gnu lib impl
-  for lib in blas lapack; do
-    if [ ! -e "$libdir/lib$lib.so.3" ]; then
-      impl=$(ls "$libdir"/{blas,lapack,openblas-pthread,atlas}/lib$lib.so.3 2>/dev/null | head -n1 || true)
-      if [ -n "$impl" ]; then ln -sf "${impl#"$libdir"/}" "$libdir/lib$lib.so.3"; fi
-    fi
-  done
-  # modules.dep for the guest's modprobe (the extract variant ran no depmod).
-  depmod -b "$rootfs" "$kver"
   echo "$want" >"$cache/rootfs.stamp"
   echo "rootfs made: $(du -sh "$rootfs" | cut -f1)"
 }
@@ -209,9 +172,7 @@ jobs_pids=()
 deb=$(ls -t "$pkgdir"/package/cylscan_*_arm64.deb | head -n1)
 echo "package: $deb"
 # The .deb's Depends (names, and the suite of the two from backports).
-depends=$(dpkg-deb -f "$deb" Depends | tr ',' '\n' | sed -e 's/(.*)//' -e 's/ //g' | grep -v '^$' |
-  sed -e 's|^libgpiod3$|libgpiod3/bookworm-backports|' -e 's|^libcamera0.3$|libcamera0.3/bookworm-backports|' |
-  sort | paste -sd, -)
+depends=$("$root/toolchain/deb-depends.sh" "$deb")
 missing=$(comm -23 <(tr ',' '\n' <<<"$depends" | sort) <(tr ',' '\n' <<<"$depends_guess" | sort) | paste -sd, -)
 echo "$depends" >"$depends_file"
 if [ -n "$missing" ]; then
