@@ -13,13 +13,16 @@
 #      on qemu-system-aarch64 -M virt, scans through cylscand under systemd
 #      against the kernel's gpio-sim and vivid drivers; it builds in the
 #      cross stage's build directory, with the virtual head;
-#   4. every libFuzzer target for 20 s over its seed corpus;
-#   5. cppcheck over the project's sources;
-#   6. clang-tidy over the project's sources (scripts/lint.sh clang-tidy);
-#   7. AddressSanitizer + UBSan over the whole suite (scripts/sanitize.sh asan);
-#   8. ThreadSanitizer over the tests that run threads (scripts/sanitize.sh tsan);
+#   4. the flashable image (tests/image/run.sh): toolchain/make-image.sh
+#      qemu-virt with the emulated board's package, booted under UEFI, its
+#      first boot checked from outside;
+#   5. every libFuzzer target for 20 s over its seed corpus;
+#   6. cppcheck over the project's sources;
+#   7. clang-tidy over the project's sources (scripts/lint.sh clang-tidy);
+#   8. AddressSanitizer + UBSan over the whole suite (scripts/sanitize.sh asan);
+#   9. ThreadSanitizer over the tests that run threads (scripts/sanitize.sh tsan);
 # CI gives the whole run 90 minutes on a 2-core machine, and the run keeps 10
-# of them as slack for a slower machine. Stages 6 to 8 are long, so each is
+# of them as slack for a slower machine. Stages 7 to 9 are long, so each is
 # started only when its expected time still fits a budget of TEST_BUDGET_S
 # seconds (default 4740: 79 min) and is stopped at the budget's end (that
 # counts as a failure; with its 30 s to exit the run still ends by 80 min). A
@@ -80,6 +83,7 @@ if [ "${TEST_QUICK:-0}" != 1 ]; then
   # The suite's Release build gives the amd64 reference digests.
   stage "cross-aarch64" env HOST_BUILD_DIR=build/default bash scripts/cross-test.sh aarch64
   stage "emulated-board" env EMULATED_BUILD_DIR=build/cross-aarch64 bash tests/emulated-board/run.sh
+  stage "image" env EMULATED_BUILD_DIR=build/cross-aarch64 bash tests/image/run.sh
   stage "fuzz" bash scripts/fuzz.sh 20
   stage "cppcheck" bash scripts/lint.sh cppcheck
   # Expected times, from the stage times measured on a 2-core machine
