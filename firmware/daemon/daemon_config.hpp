@@ -92,8 +92,8 @@ struct DaemonFlags {
 inline constexpr std::string_view kSystemConfigFile = "/etc/cylscan/cylscan.toml";
 
 // The defaults, then the config files (every --config in order, else
-// `system_config` when it exists), then the flags. ConfigError for any fault, and when none of them
-// gives a board.
+// `system_config` when it exists), then the flags. ConfigError for any
+// fault, and when none of them gives a board.
 DaemonConfig resolveDaemonConfig(const DaemonFlags& flags, const DaemonDefaults& defaults,
                                  const std::filesystem::path& system_config = kSystemConfigFile);
 
