@@ -29,6 +29,7 @@
 
 #include "firmware/daemon/daemon_config.hpp"
 #include "firmware/daemon/log.hpp"
+#include "firmware/daemon/rauc_installer.hpp"
 #include "firmware/daemon/scan_service.hpp"
 #include "firmware/http/http_api.hpp"
 
@@ -127,7 +128,9 @@ int main(int argc, char** argv) try {
 
   std::unique_ptr<ScanService> service;
   try {
-    service = std::make_unique<ScanService>(scanServiceOptions(cfg, CYLSCAN_VERSION));
+    ScanServiceOptions options = scanServiceOptions(cfg, CYLSCAN_VERSION);
+    options.installer = makeRaucInstaller();
+    service = std::make_unique<ScanService>(std::move(options));
   } catch (const std::invalid_argument& e) {  // a bad board profile (drivers::ConfigError)
     std::cerr << "cylscand: " << e.what() << "\n";
     return 2;

@@ -138,6 +138,14 @@ DaemonConfig parseDaemonConfig(std::string_view text, const fs::path& file_path,
                     1024, std::int64_t{1} << 34));
     r.finish();
   }
+  if (const toml::table* t = top.table("update")) {
+    drivers::TableReader r(*t, file, "update");
+    c.update.max_bundle_bytes = static_cast<std::uint64_t>(
+        r.integerIn("max_bundle_bytes", static_cast<std::int64_t>(c.update.max_bundle_bytes), 1024,
+                    std::int64_t{1} << 40));
+    c.update.reboot = r.boolean("reboot", c.update.reboot);
+    r.finish();
+  }
   if (const toml::table* t = top.table("retention")) {
     drivers::TableReader r(*t, file, "retention");
     c.retention.max_scans = static_cast<std::uint64_t>(

@@ -46,6 +46,12 @@ struct ScanDefaults {
   std::optional<std::string> phase;  // "fused" | "high"
 };
 
+// [update]: A/B updates through PUT /api/v1/system/update.
+struct UpdateConfig {
+  std::uint64_t max_bundle_bytes = 1ull << 30;  // larger bundles are 413
+  bool reboot = true;  // ask the image to reboot after a successful install
+};
+
 struct DaemonConfig {
   std::filesystem::path file;  // the cylscan.toml read; empty when none
   std::filesystem::path board;
@@ -58,6 +64,7 @@ struct DaemonConfig {
   std::uint64_t max_calibration_bytes = 134217728;
   RetentionConfig retention;
   ScanDefaults scan;
+  UpdateConfig update;
 };
 
 // Where the virtual head and its page are when nothing is configured.

@@ -97,6 +97,22 @@ class LiveStream {
   virtual int endStatus() const = 0;
 };
 
+// A system update being received (PUT /api/v1/system/update): the HTTP
+// layer hands it the body as it arrives, then finish() once every byte of
+// Content-Length is in. Destroyed unfinished (the connection closed early),
+// it removes what it wrote and records the update failed ("truncated upload").
+class UpdateUpload {
+ public:
+  virtual ~UpdateUpload() = default;
+  // Appends to the file; a write error is kept and reported by finish().
+  virtual void write(std::string_view bytes) = 0;
+  // The whole bundle is in: checks it with the updater and starts the
+  // install in the background. Returns the 202 answer ({"state":
+  // "installing", "version"}); ServiceError 422 a bundle the updater refuses
+  // or made for another head, 503 no updater, 507 it could not be written.
+  virtual nlohmann::json finish() = 0;
+};
+
 class HeadService {
  public:
   virtual ~HeadService() = default;
@@ -202,6 +218,14 @@ class HeadService {
   // POST /api/v1/calibration/rollback: the kept calibration installed again
   // (and the one it replaces kept in its place); 404 none kept.
   virtual nlohmann::json rollbackCalibration() = 0;
+
+  // PUT /api/v1/system/update: claims the update for a bundle of `bytes`
+  // bytes, before any byte is read. ServiceError 413 over the configured
+  // size, 503 no updater (RAUC) to install it, 409 a scan, a capture or
+  // another update runs, 507 no room for it on the data file system.
+  virtual std::unique_ptr<UpdateUpload> beginUpdate(std::uint64_t /*bytes*/) {
+    throw ServiceError(503, "updates need RAUC");
+  }
 
   // GET /api/v1/events.
   virtual std::unique_ptr<EventStream> subscribe() = 0;

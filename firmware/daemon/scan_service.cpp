@@ -92,6 +92,7 @@ ScanServiceOptions scanServiceOptions(const DaemonConfig& config, std::string ve
   o.retention = config.retention;
   o.scan = config.scan;
   o.max_calibration_bytes = config.max_calibration_bytes;
+  o.update = config.update;
   o.version = std::move(version);
   return o;
 }
@@ -113,6 +114,21 @@ ScanService::ScanService(ScanServiceOptions options)
   loadCalibrationInfo();
   loadHeadInfo();
   loadSession();
+  UpdateOptions update;
+  update.data_dir = options_.data_dir;
+  update.max_bundle_bytes = options_.update.max_bundle_bytes;
+  update.reboot = options_.update.reboot;
+  update.reserve_bytes = options_.update_reserve_bytes;
+  update.command_line = options_.command_line;
+  update.boot_id = options_.boot_id;
+  update_ = std::make_unique<UpdateService>(
+      update, options_.installer,
+      [this](const std::string& name, const json& data) { events_.publish(name, data); },
+      [this] {
+        std::lock_guard lock(mutex_);
+        if (stopping_) throw ServiceError(503, "the daemon is stopping");
+        if (job_) throw ServiceError(409, busyMessageLocked());
+      });
   worker_ = std::thread([this] { worker(); });
 }
 
@@ -140,6 +156,7 @@ void ScanService::stop() {
   if (worker_.joinable()) worker_.join();
   // A solve checks stopping_ at each step of its progress and ends.
   if (solve_thread_.joinable()) solve_thread_.join();
+  if (update_) update_->stop();
   events_.close();
 }
 
@@ -326,6 +343,8 @@ std::string ScanService::startScan(const json& options) {
 void ScanService::refuseUnlessIdleLocked() const {
   if (stopping_) throw ServiceError(503, "the daemon is stopping");
   if (job_) throw ServiceError(409, busyMessageLocked());
+  // UpdateService::begin claims first and asks after, so one of the two sees the other.
+  if (update_ && update_->busy()) throw ServiceError(409, update_->busyMessage());
 }
 
 std::string ScanService::busyMessageLocked() const {
@@ -712,8 +731,14 @@ json ScanService::status() const {
           {"disk_free_bytes", disk_free}};
 }
 
+std::unique_ptr<UpdateUpload> ScanService::beginUpdate(std::uint64_t bytes) {
+  return update_->begin(bytes);
+}
+
 json ScanService::system() const {
-  return SystemInfo(options_.version, options_.data_dir).report();
+  json report = SystemInfo(options_.version, options_.data_dir, options_.command_line).report();
+  report.update(update_->report());
+  return report;
 }
 
 json ScanService::diskFreeBytes() const {

@@ -34,6 +34,7 @@
 #include "firmware/daemon/metrics.hpp"
 #include "firmware/daemon/scan_record.hpp"
 #include "firmware/daemon/scan_store.hpp"
+#include "firmware/daemon/update_service.hpp"
 #include "firmware/phase_sink.hpp"
 #include "firmware/scan_output.hpp"
 #include "firmware/scan_profile.hpp"
@@ -48,6 +49,13 @@ struct ScanServiceOptions {
   std::uint64_t max_calibration_bytes = 134217728;
   std::uint64_t free_space_margin_bytes = 16u << 20;  // kept free beyond a scan's estimate
   std::string version = "0.0.0";
+  UpdateConfig update;
+  // The A/B updater (RAUC on an image); null: updates are 503.
+  std::shared_ptr<UpdateInstaller> installer;
+  // The update's free-space reserve and the files it reads the boot from (tests).
+  std::uint64_t update_reserve_bytes = 32ull << 20;
+  std::filesystem::path command_line = "/proc/cmdline";
+  std::filesystem::path boot_id = "/proc/sys/kernel/random/boot_id";
 };
 ScanServiceOptions scanServiceOptions(const DaemonConfig& config, std::string version);
 
@@ -95,6 +103,9 @@ class ScanService final : public HeadService {
   std::optional<std::filesystem::path> scanCameraCloud(std::string_view id,
                                                        std::string_view camera) const override;
   std::unique_ptr<EventStream> subscribe() override;
+  std::unique_ptr<UpdateUpload> beginUpdate(std::uint64_t bytes) override;
+  // Tests: the update's state machine.
+  UpdateService& updates() { return *update_; }
   std::string metricsText() const override;
   nlohmann::json cameras() const override;
   nlohmann::json setCameraControls(std::string_view camera,
@@ -235,6 +246,8 @@ class ScanService final : public HeadService {
   std::optional<ScanTimeSplit> time_split_;                                     // last scan
 
   std::thread worker_;
+  // Last: stopped (its install wait) before the events it publishes to close.
+  std::unique_ptr<UpdateService> update_;
 };
 
 }  // namespace cylscan::firmware

@@ -17,20 +17,29 @@ namespace cylscan::firmware {
 // nothing when the system did not boot from a cylscan image.
 std::optional<std::string> bootedSlot(std::string_view kernel_command_line);
 
+// The value of KEY in os-release(5) text (`KEY=value`, the value optionally
+// quoted), or nothing when the text has no such line.
+std::optional<std::string> osReleaseValue(std::string_view os_release, std::string_view key);
+
 class SystemInfo {
  public:
-  // `command_line`: /proc/cmdline, or a test's file in its place.
+  // `command_line`: /proc/cmdline; `os_release`: /etc/os-release (a test's
+  // files in their place).
   SystemInfo(std::string version, std::filesystem::path data_dir,
-             std::filesystem::path command_line = "/proc/cmdline");
+             std::filesystem::path command_line = "/proc/cmdline",
+             std::filesystem::path os_release = "/etc/os-release");
 
-  // {"version", "hostname", "slot" (null outside an image), "data":
-  // {"total_bytes", "free_bytes"} (null when it cannot be read)}.
+  // {"version", "hostname", "slot" (null outside an image), "image": {"id",
+  // "version"} (os-release's IMAGE_ID and IMAGE_VERSION; null outside an
+  // image), "data": {"total_bytes", "free_bytes"} (null when it cannot be
+  // read)}.
   nlohmann::json report() const;
 
  private:
   std::string version_;
   std::filesystem::path data_dir_;
   std::filesystem::path command_line_;
+  std::filesystem::path os_release_;
 };
 
 }  // namespace cylscan::firmware

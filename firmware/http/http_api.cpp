@@ -104,6 +104,9 @@ struct Request {
   std::string body;
   std::optional<Reply> deferred;  // a refusal to answer in the last call
   bool holds_calibration_upload = false;
+  // PUT /api/v1/system/update: the body goes to the update's file as it
+  // arrives, never into `body`. Destroyed unfinished, the upload is failed.
+  std::unique_ptr<UpdateUpload> update;
   bool answered = false;                         // a response is queued
   std::shared_ptr<struct PendingReply> pending;  // suspended until its reply is ready
   bool counted_pending = false;                  // in pending_in_flight
@@ -182,6 +185,8 @@ struct ApiServer {
                     std::size_t* upload_size, void** con_cls);
   MHD_Result begin(MHD_Connection* c, const char* url, Request& r);
   MHD_Result beginRequest(MHD_Connection* c, const char* url, Request& r);
+  MHD_Result beginUpdate(MHD_Connection* c, Request& r);
+  Reply finishUpdate(Request& r);
   MHD_Result answer(MHD_Connection* c, Request& r, Reply reply);
   MHD_Result refuse(MHD_Connection* c, Request& r, Reply reply);
   std::optional<Reply> checkAuth(MHD_Connection* c) const;
@@ -482,6 +487,11 @@ MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* met
       *upload_size = 0;
       return MHD_YES;
     }
+    if (r.update) {
+      r.update->write(std::string_view(upload_data, *upload_size));
+      *upload_size = 0;
+      return MHD_YES;
+    }
     if (r.body.size() + *upload_size > r.limit) {
       // Cannot happen with the Content-Length checked in begin() (and no
       // chunked bodies); should it, the connection is closed at once, the
@@ -512,6 +522,7 @@ MHD_Result ApiServer::access(MHD_Connection* c, const char* url, const char* met
     return startCapture(c, r, 201,
                         [&] { return service.captureBoard(bodyObject(r.body, json::object())); });
   }
+  if (r.route.endpoint == http::Endpoint::SystemUpdate) return answer(c, r, finishUpdate(r));
   if (r.route.endpoint == http::Endpoint::FringeCheck) {
     return startCapture(c, r, 200,
                         [&] { return service.fringeCheck(bodyObject(r.body, json::object())); });
@@ -590,6 +601,7 @@ MHD_Result ApiServer::beginRequest(MHD_Connection* c, const char* url, Request& 
   if (r.route.param_status != 0) {
     return refuse(c, r, errorReply(r.route.param_status, r.route.error));
   }
+  if (r.route.endpoint == http::Endpoint::SystemUpdate) return beginUpdate(c, r);
   // By the endpoint, never by the limit: the two limits may be equal.
   const bool calibration_upload_request =
       r.route.endpoint == http::Endpoint::Calibration && r.method == "PUT";
@@ -624,6 +636,55 @@ MHD_Result ApiServer::beginRequest(MHD_Connection* c, const char* url, Request& 
     r.holds_calibration_upload = true;
   }
   return MHD_YES;  // the body (if any) comes in the next calls, the answer in the last
+}
+
+// A bundle is streamed to the service's file, so its size is bounded by the
+// service (update.max_bundle_bytes, the free space), not by r.limit; the
+// service refuses before any byte is read, with the rest then drained.
+MHD_Result ApiServer::beginUpdate(MHD_Connection* c, Request& r) {
+  if (headerValue(c, MHD_HTTP_HEADER_TRANSFER_ENCODING) != nullptr) {
+    return answer(c, r,
+                  errorReply(411, "send the bundle with a Content-Length (no chunked uploads)"));
+  }
+  const char* length = headerValue(c, MHD_HTTP_HEADER_CONTENT_LENGTH);
+  if (length == nullptr) {
+    return refuse(c, r, errorReply(411, "send the bundle with a Content-Length"));
+  }
+  std::uint64_t n = 0;
+  const auto end = length + std::strlen(length);
+  const auto [ptr, ec] = std::from_chars(length, end, n);
+  if (ec != std::errc{} || ptr != end) {
+    return answer(c, r, errorReply(400, "Content-Length is not a number"));
+  }
+  if (n == 0) return refuse(c, r, errorReply(400, "the body must be a RAUC bundle (it is empty)"));
+  const char* type = headerValue(c, MHD_HTTP_HEADER_CONTENT_TYPE);
+  if (type != nullptr && std::string_view(type).substr(0, 24) != "application/octet-stream") {
+    return answer(
+        c, r,
+        errorReply(415, "send the bundle as application/octet-stream, not " + std::string(type)));
+  }
+  try {
+    r.update = service.beginUpdate(n);
+  } catch (const ServiceError& e) {
+    return answer(c, r, errorReply(e.httpStatus(), e.what()));
+  } catch (const std::exception& e) {
+    log(std::string("internal error starting an update: ") + e.what());
+    return answer(c, r, errorReply(500, std::string("internal error: ") + e.what()));
+  }
+  return MHD_YES;
+}
+
+Reply ApiServer::finishUpdate(Request& r) {
+  if (!r.update) return errorReply(500, "internal error: no update was started");
+  const std::unique_ptr<UpdateUpload> upload = std::move(r.update);
+  try {
+    return jsonReply(202, upload->finish());
+  } catch (const ServiceError& e) {
+    return errorReply(e.httpStatus(), e.what());
+  } catch (const std::exception& e) {
+    log(std::string("internal error installing an update: ") + e.what());
+    return errorReply(500, std::string("internal error: ") + e.what());
+  }
 }
 
 MHD_Result ApiServer::answer(MHD_Connection* c, Request& r, Reply reply) {
@@ -763,6 +824,8 @@ Reply ApiServer::handle(MHD_Connection* c, Request& r) {
       reply.file = std::move(file);
       return reply;
     }
+    case Endpoint::SystemUpdate:  // streamed: beginUpdate and finishUpdate answer it
+      return finishUpdate(r);
     case Endpoint::Events: {  // HEAD: the headers of a stream, no stream
       Reply reply;
       reply.content_type = "text/event-stream";

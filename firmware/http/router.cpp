@@ -145,6 +145,9 @@ Route route(std::string_view method, std::string_view path) {
     if (what == "system" && s.size() == 3) {
       return withMethods(Endpoint::System, method, true, false, false, false);
     }
+    if (what == "system" && s.size() == 4 && s[3] == "update") {
+      return withMethods(Endpoint::SystemUpdate, method, false, false, true, false);
+    }
     if (what == "checks" && s.size() == 3) {
       return withMethods(Endpoint::Checks, method, true, true, false, false);
     }

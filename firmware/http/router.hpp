@@ -17,6 +17,7 @@ enum class Endpoint {
   None,                 // no such path (404) or a refused path (400)
   Status,               // /api/v1/status
   System,               // /api/v1/system
+  SystemUpdate,         // /api/v1/system/update
   Scans,                // /api/v1/scans
   Scan,                 // /api/v1/scans/{id}
   ScanFile,             // /api/v1/scans/{id}/{name}

@@ -75,6 +75,16 @@ TEST(DaemonConfig, AbsentKeysKeepTheDefaults) {
   EXPECT_EQ(c.log_level, LogLevel::Warn);
 }
 
+TEST(DaemonConfig, ReadsTheUpdateKeys) {
+  const DaemonConfig d = parseDaemonConfig("", "c.toml", base());
+  EXPECT_EQ(d.update.max_bundle_bytes, std::uint64_t{1} << 30);
+  EXPECT_TRUE(d.update.reboot);
+  const DaemonConfig c =
+      parseDaemonConfig("[update]\nmax_bundle_bytes = 2000000\nreboot = false\n", "c.toml", base());
+  EXPECT_EQ(c.update.max_bundle_bytes, 2000000u);
+  EXPECT_FALSE(c.update.reboot);
+}
+
 // The message of parsing `text`, which must fail.
 std::string faultOf(const std::string& text) {
   try {
@@ -94,6 +104,9 @@ TEST(DaemonConfig, EachFaultNamesFileLineAndKey) {
   };
   const Case cases[] = {
       {"[daemon]\nboard = 3\n", "cylscan.toml:2: daemon.board: must be a string"},
+      {"[update]\nmax_bundle_bytes = 10\n", "cylscan.toml:2: update.max_bundle_bytes:"},
+      {"[update]\nreboot = 1\n", "cylscan.toml:2: update.reboot:"},
+      {"[update]\nrestart = true\n", "cylscan.toml:2: update.restart"},
       {"[daemon]\nlisten = \"1.2.3.4\"\n", "cylscan.toml:2: daemon.listen:"},
       {"[daemon]\nlisten = \"::1:80\"\n", "cylscan.toml:2: daemon.listen:"},
       {"[daemon]\ntoken = \"a b\"\n", "cylscan.toml:2: daemon.token:"},

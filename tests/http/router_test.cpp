@@ -22,6 +22,9 @@ TEST(Router, KnownPathsGiveTheirEndpoints) {
   EXPECT_EQ(route("GET", "/api/v1/status").endpoint, Endpoint::Status);
   EXPECT_EQ(route("GET", "/api/v1/system").endpoint, Endpoint::System);
   EXPECT_EQ(route("POST", "/api/v1/system").status, 405);
+  EXPECT_EQ(route("PUT", "/api/v1/system/update").endpoint, Endpoint::SystemUpdate);
+  EXPECT_EQ(route("POST", "/api/v1/system/update").status, 405);
+  EXPECT_EQ(route("PUT", "/api/v1/system/updates").status, 404);
   EXPECT_EQ(route("GET", "/api/v1/scans").endpoint, Endpoint::Scans);
   EXPECT_EQ(route("POST", "/api/v1/scans").endpoint, Endpoint::Scans);
   EXPECT_EQ(route("GET", "/api/v1/events").endpoint, Endpoint::Events);
