@@ -3,8 +3,8 @@
 // progress, the stored scans and, for the selected one, its previews and point
 // cloud. Set-up: each camera's live picture and settings (setup.js), the
 // fringe check of their exposure (fringe_check.js), the calibration session
-// (calibration.js), and the checks against a known artifact with their
-// history (checks.js).
+// (calibration.js), the checks against a known artifact with their
+// history (checks.js), and the system with its A/B updates (system.js).
 
 import './app.css';
 import { getBlob, getBytes, getJson, isStatus, onAuthNeeded, postJson, remove, setToken, token } from './api.js';
@@ -13,6 +13,7 @@ import { ChecksView } from './checks.js';
 import { connectEvents } from './events.js';
 import { FringeCheckView } from './fringe_check.js';
 import { SetupView } from './setup.js';
+import { SystemView } from './system.js';
 import { PointCloudViewer } from './viewer.js';
 import { element } from './dom.js';
 
@@ -374,6 +375,8 @@ function onEvent(type, data) {
     calibration.onSession(data);
   } else if (type === 'calibration_progress') {
     calibration.onSolveProgress(data);
+  } else if (type === 'update') {
+    system.onUpdate(data);
   }
 }
 
@@ -387,6 +390,7 @@ function onConnection(what, detail) {
     refreshScans();
     if (checks.loaded) checks.refresh();
     if (calibration.loaded) calibration.refresh();
+    if (system.loaded) system.refresh();
   } else if (what === 'unauthorized') {
     badge.textContent = 'token needed';
     badge.className = 'badge warn';
@@ -403,6 +407,7 @@ let setup = null;
 let checks = null;
 let fringeCheck = null;
 let calibration = null;
+let system = null;
 const VIEWS = { scan: { tab: 'scan-tab', panel: 'scan-view' }, setup: { tab: 'setup-tab', panel: 'setup-view' } };
 
 // Shows one view; the URL's fragment (#setup) keeps it across a reload.
@@ -417,6 +422,7 @@ function showView(name) {
     setup.show();
     calibration.show();
     checks.show();
+    system.refresh();
   } else setup.hide();
   const url = name === 'scan' ? location.pathname + location.search : '#setup';
   if ((location.hash === '#setup') !== (name === 'setup')) history.replaceState(null, '', url);
@@ -474,6 +480,7 @@ function setupToken() {
 function main() {
   setup = new SetupView($('setup-view'));
   checks = new ChecksView($('checks'));
+  system = new SystemView($('system'));
   fringeCheck = new FringeCheckView($('fringe-check'), {
     holdLive: (kind) => setup.holdLive(kind),
     releaseLive: () => setup.releaseLive(),
