@@ -16,10 +16,18 @@
 #   4. cuts its power, turns SSH on from the boot partition with a key made
 #      here, boots it again, and checks that the name and the token are the
 #      same, that SSH lets that key in, that the root is read-only and that
-#      every unit started.
+#      every unit started;
+#   5. updates it through the API (tests/image/updates.sh): bundles made
+#      here from the image's own root, a scan kept across them; a bundle
+#      signed by another CA and one for another board refused; a new version
+#      installed into slot b and booted; a version whose daemon cannot start
+#      rolled back to slot b by the boot counter; power cut while RAUC writes
+#      a slot, and the head still on its slot with its data.
 # Prints "N passed, M failed"; exits non-zero on any failure.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
+# shellcheck source=tests/image/updates.sh
+. "$root/tests/image/updates.sh"
 out=$root/build/image
 t0=$SECONDS
 step() { printf '\n== image: %s (%ds)\n' "$1" $((SECONDS - t0)); }
@@ -52,7 +60,7 @@ deb=${IMAGE_DEB:-}
 if [ -z "$deb" ]; then
   deb=$(ls -t "${EMULATED_BUILD_DIR:-$root/build/cross-aarch64}"/package/cylscan_*_arm64.deb 2>/dev/null | head -n 1 || true)
 fi
-"$root/toolchain/apt-install-missing.sh" qemu-system-arm qemu-efi-aarch64 curl openssh-client
+"$root/toolchain/apt-install-missing.sh" qemu-system-arm qemu-efi-aarch64 curl openssh-client e2fsprogs
 rm -rf "$out"
 "$root/toolchain/make-image.sh" qemu-virt "$out" ${deb:+"$deb"}
 img=$(ls "$out"/cylscan-*-qemu-virt.img)
@@ -73,6 +81,8 @@ printf '[daemon]\nboard = "/usr/share/cylscan/board/sim"\n' >"$run/cylscan.toml"
 mcopy -o -i "$disk@@$boot_offset" "$run/cylscan.toml" ::/cylscan/cylscan.toml
 truncate -s 4G "$disk"
 cp /usr/share/AAVMF/AAVMF_VARS.fd "$run/vars.fd"
+step "update bundles"
+make_bundles
 port=$((20000 + RANDOM % 20000))
 ssh_port=$((port + 1))
 
@@ -83,7 +93,7 @@ boot() {
     -drive if=pflash,format=raw,file="$run/vars.fd" \
     -drive if=virtio,format=raw,file="$disk" \
     -netdev "user,id=n0,hostfwd=tcp:127.0.0.1:$port-:80,hostfwd=tcp:127.0.0.1:$ssh_port-:22" \
-    -device virtio-net-pci,netdev=n0,romfile= \
+    -device virtio-net-pci,netdev=n0,romfile= -device i6300esb \
     </dev/null >"$run/console-$1.log" 2>&1 &
   qpid=$!
 }
@@ -156,9 +166,9 @@ on_head() {
 }
 check "root logs in with the key from the boot partition" test "$(on_head echo in)" = in
 check "the root file system is read-only" test "$(on_head findmnt -no OPTIONS / | cut -d, -f1)" = ro
-check "every unit started" test "$(on_head systemctl is-system-running)" = running
+check "every unit started" test "$(on_head systemctl is-system-running --wait)" = running
 on_head systemctl --failed --no-legend | sed 's/^/INFO failed unit: /' || true
-cleanup
+update_checks
 
 echo "INFO image: $(stat -c %s "$img") bytes, $(du -B1 "$img" | cut -f1) allocated"
 echo "image: total $((SECONDS - t0))s"
