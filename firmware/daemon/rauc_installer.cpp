@@ -33,7 +33,7 @@ constexpr std::string_view kInfoRefused = "rauc info error";
 // How often an install's wait looks at its stop token.
 constexpr std::uint64_t kWaitTickUs = 200000;
 
-std::string errnoText(int negative_errno) {
+std::string busErrnoText(int negative_errno) {
   return std::error_code(-negative_errno, std::generic_category()).message();
 }
 
@@ -55,7 +55,7 @@ struct BusError {
   ~BusError() { sd_bus_error_free(&error); }
   std::string message(int r) const {
     if (error.message != nullptr) return error.message;
-    return errnoText(r);
+    return busErrnoText(r);
   }
 };
 
@@ -78,7 +78,7 @@ class Bus {
     const int r = sd_bus_open_system(&bus_);
     if (r < 0) {
       throw UpdateError(UpdateError::Kind::Unavailable,
-                        std::string(kUnavailable) + ": no system bus (" + errnoText(r) + ")");
+                        std::string(kUnavailable) + ": no system bus (" + busErrnoText(r) + ")");
     }
   }
   Bus(const Bus&) = delete;
@@ -116,7 +116,7 @@ class Bus {
 
 [[noreturn]] void badReply(int r, std::string_view what) {
   throw UpdateError(UpdateError::Kind::Failed, "RAUC's answer to " + std::string(what) +
-                                                   " is not understood: " + errnoText(r));
+                                                   " is not understood: " + busErrnoText(r));
 }
 
 // Reads a variant holding a string; skips one of any other type.
@@ -244,7 +244,8 @@ class RaucInstaller final : public UpdateInstaller {
                               &onCompleted, &watch);
     }
     if (r < 0) {
-      throw UpdateError(UpdateError::Kind::Failed, "cannot watch RAUC's progress: " + errnoText(r));
+      throw UpdateError(UpdateError::Kind::Failed,
+                        "cannot watch RAUC's progress: " + busErrnoText(r));
     }
     {
       BusError e;
@@ -265,13 +266,13 @@ class RaucInstaller final : public UpdateInstaller {
       r = sd_bus_process(bus.get(), nullptr);
       if (r < 0) {
         throw UpdateError(UpdateError::Kind::Failed,
-                          "lost the system bus during the install: " + errnoText(r));
+                          "lost the system bus during the install: " + busErrnoText(r));
       }
       if (r > 0) continue;  // more may be queued
       r = sd_bus_wait(bus.get(), kWaitTickUs);
       if (r < 0 && r != -EINTR) {
         throw UpdateError(UpdateError::Kind::Failed,
-                          "lost the system bus during the install: " + errnoText(r));
+                          "lost the system bus during the install: " + busErrnoText(r));
       }
     }
     if (*watch.completed != 0) {

@@ -43,7 +43,7 @@ void removeQuietly(const fs::path& file) {
 }
 
 // A directory's entries made durable (a rename inside it).
-void syncDirectory(const fs::path& dir) {
+void syncUpdateDirectory(const fs::path& dir) {
   const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) return;
   ::fsync(fd);
@@ -113,7 +113,7 @@ class UpdateService::Upload final : public UpdateUpload {
       service_.abandon("");
       throw ServiceError(507, *error_);
     }
-    syncDirectory(service_.dir());
+    syncUpdateDirectory(service_.dir());
     return service_.startInstall(bundle);
   }
 
