@@ -85,6 +85,13 @@ slot_field() { # slot_field BOOTNAME KEY: that slot's KEY in GET /api/v1/system
 s=json.load(sys.stdin)
 print(next(x for x in s["slots"] if x["bootname"] == sys.argv[1])[sys.argv[2]])' "$1" "$2" 2>/dev/null || true
 }
+# The update's state, progress and message on one line ("- 0 -" when the
+# API does not answer).
+update_line() {
+  system_json | python3 -c 'import json,sys
+u=json.load(sys.stdin)["update"]
+print(u["state"], u["progress"], u["message"])' 2>/dev/null || echo "- 0 -"
+}
 # Waits until the install is over: installed or failed, or the head already
 # gone down to reboot into it (the install can end and the reboot begin
 # between two looks); false after the limit.
@@ -115,6 +122,32 @@ blessed() { # blessed BOOTNAME
   local _
   for _ in $(seq 1 60); do
     on_head test -e "/boot/loader/entries/cylscan-$1.conf" && return 0
+    sleep 2
+  done
+  return 1
+}
+# Sends the first 8 MiB of a bundle under its whole Content-Length, and
+# hangs up: an upload cut off.
+cut_upload() { # cut_upload BUNDLE
+  python3 - "$port" "$(token)" "$1" <<'PY'
+import os
+import socket
+import sys
+
+port, token, path = int(sys.argv[1]), sys.argv[2], sys.argv[3]
+head = (f"PUT /api/v1/system/update HTTP/1.1\r\nHost: head\r\n"
+        f"Authorization: Bearer {token}\r\nContent-Type: application/octet-stream\r\n"
+        f"Content-Length: {os.path.getsize(path)}\r\n\r\n")
+with socket.create_connection(("127.0.0.1", port), timeout=30) as s, open(path, "rb") as f:
+    s.sendall(head.encode())
+    s.sendall(f.read(8 << 20))
+PY
+}
+# Waits until the last update's record says RESULT; false after a minute.
+last_result_is() { # last_result_is RESULT
+  local _
+  for _ in $(seq 1 30); do
+    [ "$(update_field state)" = idle ] && [ "$(update_field last result)" = "$1" ] && return 0
     sleep 2
   done
   return 1
@@ -176,6 +209,22 @@ update_checks() {
   check "the refusals changed no slot" test "$(system_json | field slots)" = "$before_slots"
   check "the refusals left no bundle and no record" \
     test "$(on_head ls -A /var/lib/cylscan/update 2>/dev/null | tr '\n' ' ')" = ""
+  # A data partition too full for the bundle: 507 before a byte is stored.
+  local free
+  free=$(system_json | field data free_bytes 2>/dev/null || echo 0)
+  on_head fallocate -l $((free - 100 * 1024 * 1024)) /data/cylscan/filler
+  check "a bundle that does not fit the data partition is refused (507)" \
+    test "$(put_bundle "$run/next.raucb")" = 507
+  echo "INFO refusal: $(cat "$run/put.json")"
+  on_head rm -f /data/cylscan/filler
+  check "the full partition left no bundle and no record" \
+    test "$(on_head ls -A /var/lib/cylscan/update 2>/dev/null | tr '\n' ' ')" = ""
+  cut_upload "$run/next.raucb"
+  check "an upload cut off is recorded failed" last_result_is failed
+  echo "INFO cut off: $(update_field last message)"
+  check "it left nothing but the record" \
+    test "$(on_head ls -A /var/lib/cylscan/update 2>/dev/null | tr '\n' ' ')" = "last.json "
+  check "and changed no boot entry" test "$(entries)" = "$before_entries"
 
   step "an update through the API"
   local data_before
@@ -212,15 +261,14 @@ update_checks() {
   data_before=$(data_digest)
   check "the first version's bundle is accepted (202)" \
     test "$(put_bundle "$out/cylscan-$version-qemu-virt.raucb")" = 202
-  # Cut once RAUC has checked the bundle (60 %), as it starts on the slot.
+  # Cut while RAUC copies the root into slot a: as soon as its progress
+  # message says so (the copy then lasts tens of seconds under emulation).
   local cut=0
   end=$((SECONDS + 600))
   while [ "$SECONDS" -lt "$end" ]; do
     local state progress message
-    read -r state progress message < <(system_json | python3 -c 'import json,sys
-u=json.load(sys.stdin)["update"]
-print(u["state"], u["progress"], u["message"])' 2>/dev/null || echo "- 0 -")
-    if [ "$state" = installing ] && [ "$progress" -ge 60 ]; then
+    read -r state progress message < <(update_line)
+    if [ "$state" = installing ] && [[ $message == "Copying image"* ]]; then
       kill -9 "$qpid"
       echo "INFO power cut at $progress %: $message"
       wait "$qpid" 2>/dev/null || true
