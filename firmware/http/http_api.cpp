@@ -382,7 +382,11 @@ void ApiServer::log(std::string_view line) const {
 
 void ApiServer::start() {
   sockaddr_storage storage{};
-  unsigned flags = MHD_USE_AUTO_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG;
+  // poll, not epoll: libmicrohttpd 0.9.75's edge-triggered epoll can miss a
+  // client's FIN that arrives with the last body bytes, and the request is
+  // then held until the connection timeout (a cut-off update upload kept the
+  // update busy for 60 s in about one run in four). The connections are few.
+  unsigned flags = MHD_USE_POLL_INTERNAL_THREAD | MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG;
   if (options.address.find(':') != std::string::npos) {
     sockaddr_in6 v6{};
     v6.sin6_family = AF_INET6;

@@ -5,7 +5,7 @@
 // the real-time thread and never blocks the head: it only calls HeadService,
 // whose calls return at once.
 //
-// Threads: libmicrohttpd's internal epoll threads (a pool of
+// Threads: libmicrohttpd's internal poll threads (a pool of
 // `worker_threads`; no thread per connection) and one event pump that moves
 // HeadService events into the idle event streams, which are suspended
 // connections in between (they hold no thread).
