@@ -96,16 +96,6 @@ class TemporaryFile {
   int fd_ = -1;
 };
 
-void syncDirectory(const fs::path& target, const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) fail(target, "open directory " + dir.string() + " to sync it", errno);
-  // Some file systems cannot sync a directory (EINVAL); the rename is then as durable as it gets.
-  const bool failed = ::fsync(fd) != 0 && errno != EINVAL;
-  const int err = errno;
-  ::close(fd);
-  if (failed) fail(target, "fsync directory " + dir.string(), err);
-}
-
 }  // namespace
 
 void writeFileAtomically(const fs::path& target, std::span<const std::byte> data) {
@@ -118,7 +108,23 @@ void writeFileAtomically(const fs::path& target, std::span<const std::byte> data
     temp.syncAndClose();
     temp.renameOverTarget();
   }
-  syncDirectory(target, dir);
+  try {
+    syncDirectory(dir);
+  } catch (const std::system_error& e) {
+    fail(target, e.what(), e.code().value());
+  }
+}
+
+void syncDirectory(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) {
+    throw std::system_error(errno, std::generic_category(),
+                            "cannot open directory " + dir.string());
+  }
+  const bool failed = ::fsync(fd) != 0 && errno != EINVAL;
+  const int err = errno;
+  ::close(fd);
+  if (failed) throw std::system_error(err, std::generic_category(), "cannot fsync " + dir.string());
 }
 
 void writeFileAtomically(const fs::path& target, std::string_view text) {

@@ -15,4 +15,9 @@ namespace cylscan::formats {
 void writeFileAtomically(const std::filesystem::path& target, std::span<const std::byte> data);
 void writeFileAtomically(const std::filesystem::path& target, std::string_view text);
 
+// fsync of a directory, which makes a rename or a removal inside it durable.
+// Throws std::system_error naming the directory. A file system that cannot
+// sync a directory (EINVAL) is not an error: the rename is as durable as it gets.
+void syncDirectory(const std::filesystem::path& dir);
+
 }  // namespace cylscan::formats

@@ -282,7 +282,7 @@ void ScanService::runSessionCapture(Job& job) {
       bundle.commit();
       syncTree(partial);
       fs::rename(partial, dir);
-      syncDirectory(dir.parent_path());
+      formats::syncDirectory(dir.parent_path());
       logInfo("calibration plane " + std::to_string(capture.plane_index) + " captured");
     }
   } catch (const ServiceError&) {

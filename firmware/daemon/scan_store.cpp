@@ -33,8 +33,8 @@ constexpr std::string_view kBrokenPrefix = ".broken-";
   throw std::system_error(errno, std::generic_category(), what + " " + path.string());
 }
 
-void syncPath(const fs::path& path, bool directory) {
-  const int fd = ::open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
+void syncFile(const fs::path& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throwErrno("cannot open", path);
   if (::fsync(fd) != 0) {
     const int err = errno;
@@ -72,19 +72,15 @@ std::uint64_t directoryBytes(const fs::path& dir) {
   return total;
 }
 
-void syncDirectory(const fs::path& dir) {
-  syncPath(dir, true);
-}
-
 void syncTree(const fs::path& dir) {
   for (const auto& entry : fs::recursive_directory_iterator(dir)) {
     if (entry.is_symlink()) continue;
     if (entry.is_regular_file())
-      syncPath(entry.path(), false);
+      syncFile(entry.path());
     else if (entry.is_directory())
-      syncPath(entry.path(), true);
+      formats::syncDirectory(entry.path());
   }
-  syncPath(dir, true);
+  formats::syncDirectory(dir);
 }
 
 ScanStore::ScanStore(fs::path data_dir) : dir_(std::move(data_dir)) {
@@ -159,7 +155,7 @@ void ScanStore::commit(const ScanRecord& scan, bool keep_files) {
   syncTree(partial);
   if (fs::exists(final_dir)) throw std::runtime_error("scan " + id + " exists already");
   fs::rename(partial, final_dir);
-  syncDirectory(scansDir());
+  formats::syncDirectory(scansDir());
   const std::uint64_t bytes = directoryBytes(final_dir);
   const std::lock_guard lock(mutex_);
   scans_[id] = Entry{scan, bytes};
@@ -230,7 +226,7 @@ bool ScanStore::remove(std::string_view id) {
   std::error_code ec;
   fs::remove_all(doomed, ec);
   fs::rename(dir, doomed);
-  syncDirectory(scansDir());
+  formats::syncDirectory(scansDir());
   scans_.erase(it);
   fs::remove_all(doomed, ec);
   if (ec) logWarn("cannot remove " + doomed.string() + ": " + ec.message());

@@ -99,7 +99,5 @@ class ScanStore {
 std::uint64_t directoryBytes(const std::filesystem::path& dir);
 // fsync of every regular file and directory under `dir`, and of `dir`.
 void syncTree(const std::filesystem::path& dir);
-// fsync of one directory (std::system_error naming it).
-void syncDirectory(const std::filesystem::path& dir);
 
 }  // namespace cylscan::firmware

@@ -42,14 +42,6 @@ void removeQuietly(const fs::path& file) {
   fs::remove(file, ec);
 }
 
-// A directory's entries made durable (a rename inside it).
-void syncUpdateDirectory(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
-}
-
 ServiceError refusal(const UpdateError& e) {
   if (e.kind() == UpdateError::Kind::Unavailable) return ServiceError(503, e.what());
   return ServiceError(422, std::string("RAUC refuses the bundle: ") + e.what());
@@ -109,11 +101,17 @@ class UpdateService::Upload final : public UpdateUpload {
     if (!error_ && ::rename(part_.c_str(), bundle.c_str()) != 0) {
       error_ = "cannot rename " + part_.string() + ": " + errnoText(errno);
     }
+    if (!error_) {
+      try {
+        formats::syncDirectory(service_.dir());
+      } catch (const std::system_error& e) {
+        error_ = e.what();
+      }
+    }
     if (error_) {
       service_.abandon("");
       throw ServiceError(507, *error_);
     }
-    syncUpdateDirectory(service_.dir());
     return service_.startInstall(bundle);
   }
 
