@@ -24,6 +24,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 here=$root/toolchain/image
+# shellcheck source=toolchain/target.sh
+. "$root/toolchain/target.sh"
 usage() {
   echo "usage: toolchain/make-image.sh BOARD OUT_DIR [DEB]   (BOARD: qemu-virt)" >&2
   exit 2
@@ -42,8 +44,15 @@ case $board in
     # later versions to grow into.
     slot_mib=1024
     ;;
-  rpi4 | rpi5)
-    echo "make-image: $board: not built yet (qemu-virt is; the Raspberry Pi images need raspi-firmware's boot partition)" >&2
+  # Debian's kernel cannot ask the Pi firmware for a trial boot (tryboot is
+  # a downstream patch), and on a Pi 5 it has no SD host nor RP1 driver
+  # (docs/image.md, "Raspberry Pi: what Debian's kernel allows").
+  rpi4)
+    echo "make-image: rpi4: not built yet: Debian's kernel cannot set the Pi firmware's tryboot flag, so the image has no fail-safe update yet (docs/image.md, \"Raspberry Pi\")" >&2
+    exit 2
+    ;;
+  rpi5)
+    echo "make-image: rpi5: not built: Debian's $kabi kernel has no driver for the Pi 5's SD card (MMC_SDHCI_BRCMSTB) nor for RP1, which carries its GPIO header (docs/image.md, \"Raspberry Pi\")" >&2
     exit 2
     ;;
   *)
@@ -60,8 +69,6 @@ cache=${IMAGE_CACHE:-$root/build/image-cache}
 mkdir -p "$cache" "$out"
 t0=$SECONDS
 step() { printf '== make-image: %s (%ds)\n' "$1" $((SECONDS - t0)); }
-# shellcheck source=toolchain/target.sh
-. "$root/toolchain/target.sh"
 
 step "host packages"
 "$root/scripts/enable-backports.sh" >/dev/null
