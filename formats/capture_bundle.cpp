@@ -10,8 +10,6 @@
 #include <system_error>
 #include <utility>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "formats/atomic_file.hpp"
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
@@ -561,10 +559,7 @@ void CaptureBundleWriter::writeFrame(std::string_view camera, FringeSet set, int
   }
   const fs::path set_dir = dir_ / std::string(camera) / std::string(toString(set));
   fs::create_directories(set_dir);
-  std::vector<uchar> png;
-  if (!cv::imencode(".png", frame, png)) {
-    throw std::runtime_error(where + ": cannot encode frame " + std::to_string(k) + " as PNG");
-  }
+  const std::vector<unsigned char> png = encodePng(frame);
   writeFileAtomically(set_dir / (frameFileName(k, n) + ".png"), std::as_bytes(std::span(png)));
   progress.size = frame.size();
   progress.written[static_cast<std::size_t>(set)][static_cast<std::size_t>(k)] = true;

@@ -1,12 +1,17 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "formats/images.hpp"
 
+#include <algorithm>
+#include <cstdarg>
 #include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
+#include <tiffio.h>
 
 #include "formats/atomic_file.hpp"
 #include "formats/file_reading.hpp"
@@ -20,142 +25,104 @@ namespace fs = std::filesystem;
 
 constexpr std::uintmax_t kMaxTiffBytes = std::uintmax_t{1} << 30;
 
-void encodeAndWrite(const fs::path& file, const std::string& extension, const cv::Mat& image) {
-  std::vector<uchar> buffer;
-  bool ok = false;
-  try {
-    ok = cv::imencode(extension, image, buffer);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("cannot encode " + file.string() + ": " + e.err);
-  }
-  if (!ok) throw std::runtime_error("cannot encode " + file.string());
-  writeFileAtomically(file, std::as_bytes(std::span<const uchar>(buffer)));
+// A TIFF in memory, for libtiff's client I/O: the file read (`in`) or the
+// file being written (`out`), the position, and libtiff's last error.
+struct TiffStream {
+  std::span<const unsigned char> in;
+  std::vector<unsigned char>* out = nullptr;
+  toff_t at = 0;
+  std::string error;
+
+  toff_t size() const { return out != nullptr ? out->size() : in.size(); }
+};
+
+TiffStream& streamOf(thandle_t handle) {
+  return *static_cast<TiffStream*>(handle);
 }
 
-// The limits of a map read by readFloatTiff (those of PngLimits).
-// What readFloatTiff needs from the first image file directory (IFD) of a TIFF,
-// read before anything is decoded so that a header claiming an absurd size or
-// another sample type is refused without allocating.
-struct TiffHeader {
-  std::uint32_t width = 0;
-  std::uint32_t height = 0;
-  std::uint32_t samples_per_pixel = 1;  // TIFF defaults
-  std::uint32_t bits_per_sample = 1;
-  std::uint32_t sample_format = 1;  // 1 unsigned, 2 signed, 3 IEEE float
+tmsize_t tiffRead(thandle_t handle, void* buffer, tmsize_t n) {
+  TiffStream& s = streamOf(handle);
+  if (s.out != nullptr || n < 0 || s.at >= s.in.size()) return 0;
+  const auto count = std::min<toff_t>(static_cast<toff_t>(n), s.in.size() - s.at);
+  std::memcpy(buffer, s.in.data() + s.at, count);
+  s.at += count;
+  return static_cast<tmsize_t>(count);
+}
+
+tmsize_t tiffWrite(thandle_t handle, void* buffer, tmsize_t n) {
+  TiffStream& s = streamOf(handle);
+  if (s.out == nullptr || n < 0) return -1;
+  const auto count = static_cast<std::size_t>(n);
+  if (s.out->size() < s.at + count) s.out->resize(s.at + count);
+  std::memcpy(s.out->data() + s.at, buffer, count);
+  s.at += count;
+  return n;
+}
+
+toff_t tiffSeek(thandle_t handle, toff_t offset, int whence) {
+  TiffStream& s = streamOf(handle);
+  if (whence == SEEK_CUR) offset += s.at;
+  if (whence == SEEK_END) offset += s.size();
+  s.at = offset;
+  return s.at;
+}
+
+int tiffClose(thandle_t /*handle*/) {
+  return 0;
+}
+
+toff_t tiffSize(thandle_t handle) {
+  return streamOf(handle).size();
+}
+
+int tiffMap(thandle_t /*handle*/, void** /*base*/, toff_t* /*size*/) {
+  return 0;  // no mapping: libtiff reads through tiffRead
+}
+
+void tiffUnmap(thandle_t /*handle*/, void* /*base*/, toff_t /*size*/) {}
+
+// libtiff's errors are kept for the exception; its warnings (unknown tags
+// and the like) are not a fault of the map.
+int tiffError(TIFF* /*tiff*/, void* user, const char* module, const char* format, va_list args) {
+  auto& s = *static_cast<TiffStream*>(user);
+  char text[256];
+  std::vsnprintf(text, sizeof text, format, args);
+  if (s.error.empty()) s.error = std::string(module != nullptr ? module : "libtiff") + ": " + text;
+  return 1;
+}
+
+int tiffWarning(TIFF* /*tiff*/, void* /*user*/, const char* /*module*/, const char* /*format*/,
+                va_list /*args*/) {
+  return 1;
+}
+
+struct TiffCloser {
+  void operator()(TIFF* tiff) const { TIFFClose(tiff); }
 };
+using TiffHandle = std::unique_ptr<TIFF, TiffCloser>;
 
-class TiffHeaderParser {
- public:
-  TiffHeaderParser(const fs::path& file, const std::string& data) : file_(file), data_(data) {}
-
-  TiffHeader parse() const {
-    if (data_.size() < 8 || !(data_.compare(0, 2, "II") == 0 || data_.compare(0, 2, "MM") == 0)) {
-      fail("not a TIFF file (bad signature)");
-    }
-    if (unsigned16(2) != 42) fail("not a classic TIFF file (BigTIFF and others are not supported)");
-    const std::size_t ifd = unsigned32(4);
-    if (ifd < 8 || ifd > data_.size() - 2) fail("corrupt TIFF: the first IFD is outside the file");
-    const std::size_t entries = unsigned16(ifd);
-    if (entries > (data_.size() - ifd - 2) / 12) fail("truncated TIFF: the first IFD is cut off");
-    TiffHeader header;
-    bool has_width = false;
-    bool has_height = false;
-    for (std::size_t i = 0; i < entries; ++i) {
-      const std::size_t at = ifd + 2 + 12 * i;
-      const std::uint32_t tag = unsigned16(at);
-      const std::uint32_t count = unsigned32(at + 4);
-      const auto value = [&] { return firstValue(at, count); };
-      switch (tag) {
-        case 256:
-          header.width = value();
-          has_width = true;
-          break;
-        case 257:
-          header.height = value();
-          has_height = true;
-          break;
-        case 258:  // one value per sample; only the first matters to refuse others
-          header.bits_per_sample = value();
-          break;
-        case 277:
-          header.samples_per_pixel = value();
-          break;
-        case 339:
-          header.sample_format = value();
-          break;
-        default:
-          break;
-      }
-    }
-    if (!has_width || !has_height || header.width == 0 || header.height == 0) {
-      fail("corrupt TIFF: no image size in the first IFD");
-    }
-    return header;
-  }
-
- private:
-  [[noreturn]] void fail(const std::string& fault) const { throw InputError(file_, fault); }
-
-  bool bigEndian() const { return data_[0] == 'M'; }
-
-  std::uint32_t unsigned16(std::size_t at) const {
-    const auto b0 = static_cast<unsigned char>(data_[at]);
-    const auto b1 = static_cast<unsigned char>(data_[at + 1]);
-    return bigEndian() ? (b0 << 8u) | b1 : (b1 << 8u) | b0;
-  }
-
-  std::uint32_t unsigned32(std::size_t at) const {
-    const std::uint32_t a = unsigned16(at);
-    const std::uint32_t b = unsigned16(at + 2);
-    return bigEndian() ? (a << 16u) | b : (b << 16u) | a;
-  }
-
-  // The first SHORT or LONG value of an entry: in the entry itself when all
-  // values fit in its 4 bytes, else at the offset the entry holds.
-  std::uint32_t firstValue(std::size_t entry, std::uint32_t count) const {
-    const std::uint32_t type = unsigned16(entry + 2);
-    const std::size_t size = type == 3 ? 2 : 4;
-    if (count == 0 || (type != 3 && type != 4)) {
-      fail("corrupt TIFF: tag " + std::to_string(unsigned16(entry)) + " is not a number");
-    }
-    std::size_t at = entry + 8;
-    if (std::uint64_t{count} * size > 4) {
-      at = unsigned32(entry + 8);
-      if (at > data_.size() - size) {
-        fail("corrupt TIFF: tag " + std::to_string(unsigned16(entry)) + " points outside the file");
-      }
-    }
-    return size == 2 ? unsigned16(at) : unsigned32(at);
-  }
-
-  const fs::path& file_;
-  const std::string& data_;
-};
+TiffHandle openTiff(TiffStream& stream, const char* mode) {
+  struct OptionsFree {
+    void operator()(TIFFOpenOptions* o) const { TIFFOpenOptionsFree(o); }
+  };
+  const std::unique_ptr<TIFFOpenOptions, OptionsFree> options(TIFFOpenOptionsAlloc());
+  if (!options) return nullptr;
+  TIFFOpenOptionsSetErrorHandlerExtR(options.get(), tiffError, &stream);
+  TIFFOpenOptionsSetWarningHandlerExtR(options.get(), tiffWarning, &stream);
+  return TiffHandle(TIFFClientOpenExt("map", mode, &stream, tiffRead, tiffWrite, tiffSeek,
+                                      tiffClose, tiffSize, tiffMap, tiffUnmap, options.get()));
+}
 
 std::string sampleText(std::uint32_t channels, std::uint32_t bits, std::uint32_t format) {
   return std::to_string(channels) + "-channel image of " + std::to_string(bits) + "-bit " +
-         (format == 3 ? "float" : "integer") + " samples";
+         (format == SAMPLEFORMAT_IEEEFP ? "float" : "integer") + " samples";
 }
 
-TiffHeader checkFloatTiffHeader(const fs::path& file, const std::string& data,
-                                const PngLimits& limits) {
-  const TiffHeader header = TiffHeaderParser(file, data).parse();
-  const auto pixels = std::int64_t{header.width} * std::int64_t{header.height};
-  if (std::int64_t{header.width} > limits.max_width ||
-      std::int64_t{header.height} > limits.max_height || pixels > limits.max_pixels) {
-    throw InputError(file, "TIFF header claims an image of " + std::to_string(header.width) + "x" +
-                               std::to_string(header.height) + " pixels, beyond the limit of " +
-                               std::to_string(limits.max_width) + "x" +
-                               std::to_string(limits.max_height) + " and " +
-                               std::to_string(limits.max_pixels) + " pixels");
-  }
-  if (header.samples_per_pixel != 1 || header.bits_per_sample != 32 || header.sample_format != 3) {
-    throw InputError(file, "holds a " +
-                               sampleText(header.samples_per_pixel, header.bits_per_sample,
-                                          header.sample_format) +
-                               "; expected a single-channel 32-bit float map");
-  }
-  return header;
+template <typename T>
+std::uint32_t field(TIFF* tiff, ttag_t tag) {
+  T value{};
+  TIFFGetFieldDefaulted(tiff, tag, &value);
+  return value;
 }
 
 }  // namespace
@@ -165,31 +132,83 @@ void writeFloatTiff(const fs::path& file, const cv::Mat& map) {
     throw std::invalid_argument("float TIFF " + file.string() +
                                 ": the map must be a non-empty CV_32FC1 image");
   }
-  encodeAndWrite(file, ".tiff", map);
+  std::vector<unsigned char> bytes;
+  TiffStream stream;
+  stream.out = &bytes;
+  {
+    const TiffHandle tiff = openTiff(stream, "w");
+    bool ok = tiff != nullptr;
+    if (ok) {
+      TIFFSetField(tiff.get(), TIFFTAG_IMAGEWIDTH, static_cast<std::uint32_t>(map.cols));
+      TIFFSetField(tiff.get(), TIFFTAG_IMAGELENGTH, static_cast<std::uint32_t>(map.rows));
+      TIFFSetField(tiff.get(), TIFFTAG_BITSPERSAMPLE, 32);
+      TIFFSetField(tiff.get(), TIFFTAG_SAMPLESPERPIXEL, 1);
+      TIFFSetField(tiff.get(), TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_IEEEFP);
+      TIFFSetField(tiff.get(), TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+      TIFFSetField(tiff.get(), TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+      // Deflate without a predictor: every TIFF reader decodes it.
+      TIFFSetField(tiff.get(), TIFFTAG_COMPRESSION, COMPRESSION_ADOBE_DEFLATE);
+      TIFFSetField(tiff.get(), TIFFTAG_ROWSPERSTRIP, TIFFDefaultStripSize(tiff.get(), 0));
+      // The encoder may change the row it is given: a copy of each row.
+      std::vector<float> row(static_cast<std::size_t>(map.cols));
+      for (int y = 0; ok && y < map.rows; ++y) {
+        std::memcpy(row.data(), map.ptr<float>(y), row.size() * sizeof(float));
+        ok = TIFFWriteScanline(tiff.get(), row.data(), static_cast<std::uint32_t>(y), 0) == 1;
+      }
+      ok = ok && TIFFWriteDirectory(tiff.get()) == 1;
+    }
+    if (!ok) {
+      throw std::runtime_error("cannot encode " + file.string() + ": " +
+                               (stream.error.empty() ? "libtiff failed" : stream.error));
+    }
+  }
+  writeFileAtomically(file, std::as_bytes(std::span<const unsigned char>(bytes)));
 }
 
 cv::Mat readFloatTiff(const fs::path& file) {
   const std::string data = readFileContents(file, kMaxTiffBytes);
-  const TiffHeader header = checkFloatTiffHeader(file, data, PngLimits{});
-  cv::Mat image;
-  try {
-    // imdecode only reads the buffer; the Mat header just cannot be built from const data.
-    const cv::Mat buffer(1, static_cast<int>(data.size()), CV_8UC1, const_cast<char*>(data.data()));
-    image = cv::imdecode(buffer, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    throw InputError(file, "corrupt TIFF: cannot decode (" + e.err + ")");
+  if (data.size() < 4 || !(data.compare(0, 2, "II") == 0 || data.compare(0, 2, "MM") == 0)) {
+    throw InputError(file, "not a TIFF file (bad signature)");
   }
-  if (image.empty()) throw InputError(file, "corrupt or truncated TIFF: cannot decode the image");
-  if (image.cols != static_cast<int>(header.width) ||
-      image.rows != static_cast<int>(header.height)) {
-    throw InputError(file, "corrupt TIFF: decoded to another size than the header says");
+  TiffStream stream;
+  stream.in = std::span(reinterpret_cast<const unsigned char*>(data.data()), data.size());
+  // "m": no memory mapping (tiffMap maps nothing anyway).
+  const TiffHandle tiff = openTiff(stream, "rm");
+  if (!tiff) throw InputError(file, "corrupt TIFF: " + stream.error);
+  const std::uint32_t width = field<std::uint32_t>(tiff.get(), TIFFTAG_IMAGEWIDTH);
+  const std::uint32_t height = field<std::uint32_t>(tiff.get(), TIFFTAG_IMAGELENGTH);
+  const std::uint32_t samples = field<std::uint16_t>(tiff.get(), TIFFTAG_SAMPLESPERPIXEL);
+  const std::uint32_t bits = field<std::uint16_t>(tiff.get(), TIFFTAG_BITSPERSAMPLE);
+  const std::uint32_t format = field<std::uint16_t>(tiff.get(), TIFFTAG_SAMPLEFORMAT);
+  // The limits of a map are those of a frame (PngLimits), checked before
+  // anything is allocated for the samples.
+  const PngLimits limits;
+  const auto pixels = std::int64_t{width} * std::int64_t{height};
+  if (width == 0 || height == 0) throw InputError(file, "corrupt TIFF: no image size");
+  if (std::int64_t{width} > limits.max_width || std::int64_t{height} > limits.max_height ||
+      pixels > limits.max_pixels) {
+    throw InputError(file, "TIFF header claims an image of " + std::to_string(width) + "x" +
+                               std::to_string(height) + " pixels, beyond the limit of " +
+                               std::to_string(limits.max_width) + "x" +
+                               std::to_string(limits.max_height) + " and " +
+                               std::to_string(limits.max_pixels) + " pixels");
   }
-  if (image.type() != CV_32FC1) {
-    throw InputError(file, "holds a " + std::to_string(image.channels()) + "-channel image of " +
-                               (image.depth() == CV_32F
-                                    ? std::string("32-bit float")
-                                    : std::to_string(8 * image.elemSize1()) + "-bit integer") +
-                               " samples; expected a single-channel 32-bit float map");
+  if (samples != 1 || bits != 32 || format != SAMPLEFORMAT_IEEEFP) {
+    throw InputError(file, "holds a " + sampleText(samples, bits, format) +
+                               "; expected a single-channel 32-bit float map");
+  }
+  if (TIFFIsTiled(tiff.get()) != 0) {
+    throw InputError(file, "is a tiled TIFF; a map is read only in strips");
+  }
+  if (TIFFScanlineSize64(tiff.get()) != std::uint64_t{width} * sizeof(float)) {
+    throw InputError(file, "corrupt TIFF: its rows are not " + std::to_string(width) + " floats");
+  }
+  cv::Mat image(static_cast<int>(height), static_cast<int>(width), CV_32FC1);
+  for (std::uint32_t y = 0; y < height; ++y) {
+    if (TIFFReadScanline(tiff.get(), image.ptr(static_cast<int>(y)), y, 0) != 1) {
+      throw InputError(file, "corrupt or truncated TIFF: cannot decode row " + std::to_string(y) +
+                                 (stream.error.empty() ? "" : " (" + stream.error + ")"));
+    }
   }
   return image;
 }
@@ -201,7 +220,8 @@ void writePng(const fs::path& file, const cv::Mat& image) {
     throw std::invalid_argument("PNG " + file.string() +
                                 ": the image must be non-empty, 8/16-bit, with 1 or 3 channels");
   }
-  encodeAndWrite(file, ".png", image);
+  const std::vector<unsigned char> bytes = encodePng(image);
+  writeFileAtomically(file, std::as_bytes(std::span<const unsigned char>(bytes)));
 }
 
 }  // namespace cylscan::formats

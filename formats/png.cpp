@@ -3,10 +3,17 @@
 
 #include <algorithm>
 #include <array>
+#include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
+
+#include <png.h>
+#include <zlib.h>
 
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
@@ -17,23 +24,10 @@ namespace {
 constexpr std::array<unsigned char, 8> kSignature{0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
 constexpr std::uint32_t kMaxChunkLength = 0x7FFFFFFFu;  // PNG: lengths and sizes < 2^31
 
-constexpr std::array<std::uint32_t, 256> makeCrcTable() {
-  std::array<std::uint32_t, 256> table{};
-  for (std::uint32_t n = 0; n < 256; ++n) {
-    std::uint32_t c = n;
-    for (int k = 0; k < 8; ++k)
-      c = (c & 1u) != 0 ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-    table[n] = c;
-  }
-  return table;
-}
-constexpr std::array<std::uint32_t, 256> kCrcTable = makeCrcTable();
-
+// The CRC of a chunk (zlib's: the same CRC-32 as PNG's).
 std::uint32_t crc32(std::span<const std::byte> bytes) {
-  std::uint32_t c = 0xFFFFFFFFu;
-  for (const std::byte b : bytes)
-    c = kCrcTable[(c ^ std::to_integer<std::uint32_t>(b)) & 0xFFu] ^ (c >> 8);
-  return c ^ 0xFFFFFFFFu;
+  return static_cast<std::uint32_t>(
+      ::crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
 }
 
 std::uint32_t bigEndian32(std::span<const std::byte> bytes, std::size_t at) {
@@ -100,7 +94,131 @@ void checkChunkStructure(std::span<const std::byte> bytes, const std::filesystem
   if (!seen_idat) throw InputError(file, "corrupt PNG: no IDAT (image data) chunk");
 }
 
+// libpng reports an error by calling its error function, which must not
+// return: it copies the message and jumps back to the setjmp of the call
+// into libpng. No C++ object is made between that setjmp and the jump, so
+// none is skipped, and no exception ever unwinds through libpng's C frames.
+struct PngIo {
+  std::span<const std::byte> in;  // decoding: the file
+  std::size_t at = 0;
+  std::vector<unsigned char>* out = nullptr;  // encoding: the file so far
+  std::array<char, 256> message{};
+};
+
+[[noreturn]] void pngError(png_structp png, png_const_charp text) {
+  auto* io = static_cast<PngIo*>(png_get_error_ptr(png));
+  std::snprintf(io->message.data(), io->message.size(), "%s", text);
+  png_longjmp(png, 1);
+}
+
+void pngWarning(png_structp /*png*/, png_const_charp /*text*/) {}
+
+void pngRead(png_structp png, png_bytep data, png_size_t length) {
+  auto* io = static_cast<PngIo*>(png_get_io_ptr(png));
+  if (io->in.size() - io->at < length) png_error(png, "the file ends inside the image data");
+  std::memcpy(data, io->in.data() + io->at, length);
+  io->at += length;
+}
+
+void pngWrite(png_structp png, png_bytep data, png_size_t length) {
+  auto* io = static_cast<PngIo*>(png_get_io_ptr(png));
+  io->out->insert(io->out->end(), data, data + length);
+}
+
+void pngFlush(png_structp /*png*/) {}
+
+// The image a PNG decodes to, as OpenCV's codecs give it: grey one channel,
+// colour (and palette) BGR, with an alpha channel BGRA; 8 bits for 8 bits
+// or fewer, else 16. A transparency chunk (tRNS) adds no alpha channel.
+cv::Mat decodedImage(const PngHeader& header) {
+  const int depth = header.bit_depth == 16 ? CV_16U : CV_8U;
+  int channels = 1;
+  if (header.colour_type == 2 || header.colour_type == 3) channels = 3;
+  if (header.colour_type == 4 || header.colour_type == 6) channels = 4;
+  return cv::Mat(header.height, header.width, CV_MAKETYPE(depth, channels));
+}
+
+// Decodes `bytes` into `image`, already of the size and type decodedImage
+// gives; the error's text otherwise. libpng applies no gamma: the samples
+// are those stored.
+std::optional<std::string> decodePng(std::span<const std::byte> bytes, cv::Mat& image) {
+  PngIo io;
+  io.in = bytes;
+  std::vector<png_bytep> rows(static_cast<std::size_t>(image.rows));
+  for (int y = 0; y < image.rows; ++y)
+    rows[static_cast<std::size_t>(y)] = image.ptr(y);
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &io, pngError, pngWarning);
+  if (png == nullptr) return std::string("libpng cannot start");
+  png_infop info = png_create_info_struct(png);
+  // NOLINTNEXTLINE(cert-err52-cpp): libpng's error model; see PngIo
+  if (info == nullptr || setjmp(png_jmpbuf(png)) != 0) {
+    png_destroy_read_struct(&png, info != nullptr ? &info : nullptr, nullptr);
+    return std::string(io.message.data());
+  }
+  png_set_read_fn(png, &io, pngRead);
+  png_set_crc_action(png, PNG_CRC_ERROR_QUIT, PNG_CRC_ERROR_QUIT);
+  png_read_info(png, info);
+  const int colour = png_get_color_type(png, info);
+  png_set_palette_to_rgb(png);
+  png_set_expand_gray_1_2_4_to_8(png);
+  png_set_packing(png);
+  if (png_get_bit_depth(png, info) == 16) png_set_swap(png);  // to the host's order
+  if (colour == PNG_COLOR_TYPE_GRAY_ALPHA) png_set_gray_to_rgb(png);
+  if ((colour & PNG_COLOR_MASK_COLOR) != 0 || colour == PNG_COLOR_TYPE_GRAY_ALPHA) png_set_bgr(png);
+  png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+  if (png_get_rowbytes(png, info) != image.cols * image.elemSize() ||
+      png_get_image_height(png, info) != static_cast<png_uint_32>(image.rows)) {
+    png_error(png, "the decoded rows do not match the header");
+  }
+  png_read_image(png, rows.data());
+  png_read_end(png, nullptr);
+  png_destroy_read_struct(&png, &info, nullptr);
+  return std::nullopt;
+}
+
 }  // namespace
+
+std::vector<unsigned char> encodePng(const cv::Mat& image) {
+  const bool depth_ok = image.depth() == CV_8U || image.depth() == CV_16U;
+  const bool channels_ok = image.channels() == 1 || image.channels() == 3;
+  if (image.empty() || !depth_ok || !channels_ok) {
+    throw std::invalid_argument("PNG: the image must be non-empty, 8/16-bit, with 1 or 3 channels");
+  }
+  std::vector<unsigned char> out;
+  out.reserve(image.total() * image.elemSize() / 2 + 1024);
+  PngIo io;
+  io.out = &out;
+  std::vector<png_bytep> rows(static_cast<std::size_t>(image.rows));
+  for (int y = 0; y < image.rows; ++y)
+    rows[static_cast<std::size_t>(y)] = const_cast<png_bytep>(image.ptr(y));  // only read
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &io, pngError, pngWarning);
+  if (png == nullptr) throw std::runtime_error("PNG: libpng cannot start");
+  png_infop info = png_create_info_struct(png);
+  // NOLINTNEXTLINE(cert-err52-cpp): libpng's error model; see PngIo
+  if (info == nullptr || setjmp(png_jmpbuf(png)) != 0) {
+    png_destroy_write_struct(&png, info != nullptr ? &info : nullptr);
+    throw std::runtime_error(std::string("PNG: cannot encode: ") + io.message.data());
+  }
+  png_set_write_fn(png, &io, pngWrite, pngFlush);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.cols),
+               static_cast<png_uint_32>(image.rows), image.depth() == CV_16U ? 16 : 8,
+               image.channels() == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  // Speed first: frames are written while the stage turns, and a camera's
+  // noise leaves little for slower settings to win. One filter (Sub), zlib's
+  // fastest level and run-length matching.
+  png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB);
+  png_set_compression_level(png, Z_BEST_SPEED);
+  png_set_compression_strategy(png, Z_RLE);
+  png_write_info(png, info);
+  if (image.channels() == 3) png_set_bgr(png);
+  if (image.depth() == CV_16U) png_set_swap(png);
+  png_write_image(png, rows.data());
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return out;
+}
 
 int PngHeader::channels() const {
   switch (colour_type) {
@@ -186,24 +304,9 @@ cv::Mat readPng(const std::filesystem::path& file, const PngLimits& limits, PngH
   }
   checkChunkStructure(bytes, file);
 
-  cv::Mat image;
-  try {
-    // imdecode only reads the buffer; the Mat header just cannot be built from const data.
-    const cv::Mat buffer(1, static_cast<int>(contents.size()), CV_8UC1,
-                         const_cast<char*>(contents.data()));
-    image = cv::imdecode(buffer, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    throw InputError(file, "corrupt PNG: cannot decode (" + e.msg + ")");
-  }
-  if (image.empty()) throw InputError(file, "corrupt PNG: the image data cannot be decoded");
-  if (image.cols != header.width || image.rows != header.height) {
-    throw InputError(file, "corrupt PNG: decoded to " + sizeText(image.cols, image.rows) +
-                               " pixels, the header says " + sizeText(header.width, header.height));
-  }
-  const int expected_depth = header.bit_depth == 16 ? CV_16U : CV_8U;
-  if (image.depth() != expected_depth) {
-    throw InputError(file, "corrupt PNG: decoded sample depth does not match the header's " +
-                               std::to_string(header.bit_depth) + " bits");
+  cv::Mat image = decodedImage(header);
+  if (const auto error = decodePng(bytes, image)) {
+    throw InputError(file, "corrupt PNG: cannot decode (" + *error + ")");
   }
   if (header_out != nullptr) *header_out = header;
   return image;

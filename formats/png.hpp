@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <span>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -46,5 +47,10 @@ PngHeader readPngHeader(const std::filesystem::path& file, const PngLimits& limi
 // InputError. The header is returned in *header when header is not null.
 cv::Mat readPng(const std::filesystem::path& file, const PngLimits& limits = {},
                 PngHeader* header = nullptr);
+
+// The PNG file of an 8/16-bit image with 1 (grey) or 3 (BGR) channels, written
+// with libpng: std::invalid_argument for another image, std::runtime_error
+// when libpng fails.
+std::vector<unsigned char> encodePng(const cv::Mat& image);
 
 }  // namespace cylscan::formats

@@ -9,7 +9,8 @@ export DEBIAN_FRONTEND=noninteractive
 
 PKGS=(
   build-essential cmake ninja-build pkg-config git curl
-  libopencv-dev            # imgcodecs (PNG/TIFF), imgproc, calib3d
+  libopencv-dev            # core, imgproc, calib3d (imgcodecs: the tests' own decoder)
+  libpng-dev libtiff-dev zlib1g-dev # frames (PNG) and maps (float TIFF), without imgcodecs' GDAL tree
   libeigen3-dev            # small dense solvers
   nlohmann-json3-dev       # capture.json, --json output
   libtomlplusplus-dev      # scene and board TOML

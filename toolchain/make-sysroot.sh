@@ -33,7 +33,7 @@ dir=$2
 packages=(
   libc6-dev libstdc++-12-dev linux-libc-dev
   libopencv-dev libeigen3-dev nlohmann-json3-dev libtomlplusplus-dev libcli11-dev
-  libmicrohttpd-dev libsystemd-dev libcurl4-openssl-dev libturbojpeg0-dev
+  libmicrohttpd-dev libsystemd-dev libcurl4-openssl-dev libturbojpeg0-dev libpng-dev libtiff-dev zlib1g-dev
   libgtest-dev libgmock-dev
   libgpiod-dev/bookworm-backports libcamera-dev/bookworm-backports
 )

@@ -107,7 +107,7 @@ build_package() { "$root/toolchain/make-deb.sh" "$pkgdir" "$sysroot" cylscan_emu
 rootfs=$cache/rootfs
 depends_file=$cache/deb-depends
 base_depends="libc6,libgcc-s1,libstdc++6,libopencv-core406,libopencv-imgproc406,\
-libopencv-imgcodecs406,libopencv-calib3d406,libgpiod3/bookworm-backports,\
+libopencv-calib3d406,libpng16-16,libtiff6,libgpiod3/bookworm-backports,\
 libcamera0.3/bookworm-backports,libmicrohttpd12,libturbojpeg0,libsystemd0,libtomlplusplus3,passwd"
 rootfs_packages() { # rootfs_packages DEPENDS_LIST
   echo "$1,base-passwd,systemd,udev,curl,busybox-static,gpiod/bookworm-backports,v4l-utils,kmod,\

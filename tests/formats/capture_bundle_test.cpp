@@ -528,7 +528,7 @@ TEST_F(CaptureBundleTest, CorruptImageData) {
   writeText(frame, craftedPng(8, 6, 8, 0));  // valid header, IDAT of garbage
   const CaptureBundleReader reader(bundle());
   EXPECT_TRUE(throwsInputError([&] { reader.readFrame("main", FringeSet::Low, 2); }, frame,
-                               {"corrupt PNG", "cannot be decoded"}));
+                               {"corrupt PNG", "cannot decode"}));
 }
 
 TEST_F(CaptureBundleTest, ThreeChannelFrame) {

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "formats/images.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -69,18 +70,28 @@ TEST_F(ImagesTest, ReadFloatTiffRejectsAThreeChannelFloatTiff) {
                                {"3-channel image", "expected a single-channel 32-bit float map"}));
 }
 
-// A little-endian TIFF with one IFD of LONG entries and no image data.
+// A little-endian TIFF with one IFD of LONG entries, one strip of the size
+// the header implies, and no image data: the strip's offset is past the end.
 std::string craftedTiff(std::uint32_t width, std::uint32_t height, std::uint32_t bits,
                         std::uint32_t samples, std::uint32_t format) {
   const auto u16 = [](std::uint32_t v) {
     return std::string{static_cast<char>(v & 0xFF), static_cast<char>((v >> 8) & 0xFF)};
   };
   const auto u32 = [&](std::uint32_t v) { return u16(v & 0xFFFF) + u16(v >> 16); };
-  std::string tiff = std::string("II*\0", 4) + u32(8) + u16(5);
-  for (const auto& [tag, value] : std::vector<std::pair<std::uint32_t, std::uint32_t>>{
-           {256, width}, {257, height}, {258, bits}, {277, samples}, {339, format}}) {
+  const std::uint64_t strip = std::uint64_t{width} * height * samples * bits / 8;
+  const std::vector<std::pair<std::uint32_t, std::uint32_t>> entries{
+      {256, width},
+      {257, height},
+      {258, bits},
+      {273, 4096},
+      {277, samples},
+      {278, height},
+      {279, static_cast<std::uint32_t>(std::min<std::uint64_t>(strip, 0xFFFFFFFFu))},
+      {339, format}};
+  std::string tiff =
+      std::string("II*\0", 4) + u32(8) + u16(static_cast<std::uint32_t>(entries.size()));
+  for (const auto& [tag, value] : entries)
     tiff += u16(tag) + u16(4) + u32(1) + u32(value);
-  }
   return tiff + u32(0);
 }
 
