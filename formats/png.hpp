@@ -41,10 +41,11 @@ PngHeader parsePngHeader(std::span<const std::byte> bytes, const std::filesystem
 // Reads only the first bytes of the file and parses them with parsePngHeader.
 PngHeader readPngHeader(const std::filesystem::path& file, const PngLimits& limits = {});
 
-// Reads and decodes a PNG as stored (cv::IMREAD_UNCHANGED: 8-bit or 16-bit, 1,
-// 3 or 4 channels in OpenCV's BGR order). The header is checked first; a file
-// that ends before IEND, fails to decode or decodes to another size is an
-// InputError. The header is returned in *header when header is not null.
+// Reads and decodes a PNG with libpng, samples as stored (no gamma): 8-bit
+// (fewer bits expanded) or 16-bit; grey 1 channel, colour and palette 3
+// (BGR), with alpha 4 (BGRA). The header is checked first; a file that ends
+// before IEND or fails to decode is an InputError. The header is returned in
+// *header when header is not null.
 cv::Mat readPng(const std::filesystem::path& file, const PngLimits& limits = {},
                 PngHeader* header = nullptr);
 
