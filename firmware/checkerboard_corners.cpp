@@ -11,15 +11,12 @@
 
 #include "formats/input_error.hpp"
 #include "formats/png.hpp"
+#include "formats/size_text.hpp"
 
 namespace cylscan::firmware {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string sizeText(cv::Size size) {
-  return std::to_string(size.width) + "x" + std::to_string(size.height);
-}
 
 // Any 8/16-bit, 1/3/4-channel PNG as 8-bit grey (16-bit stretched to its range).
 cv::Mat readGrey8(const fs::path& file) {
@@ -130,8 +127,8 @@ PairDetection detectPairCorners(const formats::CheckerboardInfo& board, const cv
   const cv::Mat main_grey = toGrey8(main);
   const cv::Mat aux_grey = toGrey8(aux);
   if (main.size() != aux.size()) {
-    throw std::invalid_argument("the aux image is " + sizeText(aux.size()) + ", main's is " +
-                                sizeText(main.size()));
+    throw std::invalid_argument("the aux image is " + formats::sizeText(aux.size()) +
+                                ", main's is " + formats::sizeText(main.size()));
   }
   return detectGrey({board.cols, board.rows}, main_grey, aux_grey);
 }
@@ -148,8 +145,8 @@ StereoCorners detectStereoCorners(const formats::CheckerboardInfo& board,
     if (out.image_size.empty()) out.image_size = pair.main.size();
     if (pair.main.size() != out.image_size) {
       throw std::invalid_argument("checkerboard pair " + pair.id + ": the main image is " +
-                                  sizeText(pair.main.size()) + ", the first pair's are " +
-                                  sizeText(out.image_size));
+                                  formats::sizeText(pair.main.size()) + ", the first pair's are " +
+                                  formats::sizeText(out.image_size));
     }
     try {
       record(out, pair.id, detectPairCorners(board, pair.main, pair.aux));

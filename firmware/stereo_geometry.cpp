@@ -4,13 +4,10 @@
 #include <string>
 
 #include "formats/input_error.hpp"
+#include "formats/size_text.hpp"
 
 namespace cylscan::firmware {
 namespace {
-
-std::string sizeText(cv::Size size) {
-  return std::to_string(size.width) + "x" + std::to_string(size.height);
-}
 
 cv::Size imageSize(const formats::StereoCalibration& calib) {
   return {calib.image_width, calib.image_height};
@@ -47,9 +44,9 @@ void requireStereoImageSize(const std::filesystem::path& stereo_file,
                             const formats::StereoCalibration& calib, cv::Size size,
                             const std::filesystem::path& images) {
   if (imageSize(calib) == size) return;
-  throw formats::InputError(stereo_file, "calibrated for " + sizeText(imageSize(calib)) +
+  throw formats::InputError(stereo_file, "calibrated for " + formats::sizeText(imageSize(calib)) +
                                              " images, but " + images.string() + " has " +
-                                             sizeText(size) + " images");
+                                             formats::sizeText(size) + " images");
 }
 
 }  // namespace cylscan::firmware

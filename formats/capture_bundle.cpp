@@ -14,6 +14,7 @@
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
 #include "formats/png.hpp"
+#include "formats/size_text.hpp"
 
 namespace cylscan::formats {
 namespace {
@@ -323,10 +324,6 @@ std::vector<std::pair<std::string, std::uintmax_t>> frameFilesIn(const fs::path&
   }
   if (ec) throw InputError(set_dir, "cannot list the directory: " + ec.message());
   return files;
-}
-
-std::string sizeText(cv::Size size) {
-  return std::to_string(size.width) + "x" + std::to_string(size.height);
 }
 
 PngLimits pngLimits(const FrameLimits& limits) {

@@ -14,6 +14,7 @@
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
 #include "formats/png.hpp"
+#include "formats/size_text.hpp"
 
 namespace cylscan::formats {
 namespace {
@@ -119,10 +120,8 @@ class SizeCheck {
       size_ = size;
       first_file_ = file;
     } else if (size != size_) {
-      throw InputError(file, "image size " + std::to_string(size.width) + "x" +
-                                 std::to_string(size.height) + " differs from the " +
-                                 std::to_string(size_.width) + "x" + std::to_string(size_.height) +
-                                 " of " + first_file_.string());
+      throw InputError(file, "image size " + sizeText(size) + " differs from the " +
+                                 sizeText(size_) + " of " + first_file_.string());
     }
   }
 

@@ -17,6 +17,7 @@
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
 #include "formats/png.hpp"
+#include "formats/size_text.hpp"
 
 namespace cylscan::formats {
 namespace {
@@ -187,10 +188,9 @@ cv::Mat readFloatTiff(const fs::path& file) {
   if (width == 0 || height == 0) throw InputError(file, "corrupt TIFF: no image size");
   if (std::int64_t{width} > limits.max_width || std::int64_t{height} > limits.max_height ||
       pixels > limits.max_pixels) {
-    throw InputError(file, "TIFF header claims an image of " + std::to_string(width) + "x" +
-                               std::to_string(height) + " pixels, beyond the limit of " +
-                               std::to_string(limits.max_width) + "x" +
-                               std::to_string(limits.max_height) + " and " +
+    throw InputError(file, "TIFF header claims an image of " + sizeText(width, height) +
+                               " pixels, beyond the limit of " +
+                               sizeText(limits.max_width, limits.max_height) + " and " +
                                std::to_string(limits.max_pixels) + " pixels");
   }
   if (samples != 1 || bits != 32 || format != SAMPLEFORMAT_IEEEFP) {

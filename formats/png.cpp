@@ -17,6 +17,7 @@
 
 #include "formats/file_reading.hpp"
 #include "formats/input_error.hpp"
+#include "formats/size_text.hpp"
 
 namespace cylscan::formats {
 namespace {
@@ -60,10 +61,6 @@ bool bitDepthAllowed(int colour_type, int bit_depth) {
     default:
       return false;
   }
-}
-
-std::string sizeText(std::int64_t width, std::int64_t height) {
-  return std::to_string(width) + "x" + std::to_string(height);
 }
 
 // Walks the chunks after the signature up to IEND; a file that ends inside a
