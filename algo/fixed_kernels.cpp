@@ -317,25 +317,15 @@ CYLSCAN_TARGET_AVX512 std::size_t combineAvx512(const CombineParams& p, std::siz
                                                 const CompactOutputs& out) {
   return combineBody(p, n, c, s, a, phase, mod, out);
 }
-#endif
 
 bool useAvx512(KernelIsa isa) {
-#if CYLSCAN_AVX2_VARIANT
   return resolveKernelIsa(isa) == KernelIsa::kAvx512;
-#else
-  (void)isa;
-  return false;
-#endif
 }
 
 bool useAvx2(KernelIsa isa) {
-#if CYLSCAN_AVX2_VARIANT
   return resolveKernelIsa(isa) == KernelIsa::kAvx2;
-#else
-  (void)isa;
-  return false;
-#endif
 }
+#endif
 
 }  // namespace
 

@@ -9,6 +9,7 @@ export DEBIAN_FRONTEND=noninteractive
 
 PKGS=(
   build-essential cmake ninja-build pkg-config git curl
+  python3                  # tests/algo/vectorised.py, scripts/lint.sh's clang-tidy groups
   libopencv-dev            # core, imgproc, calib3d (imgcodecs: the tests' own decoder)
   libpng-dev libtiff-dev zlib1g-dev # frames (PNG) and maps (float TIFF), without imgcodecs' GDAL tree
   libeigen3-dev            # small dense solvers
