@@ -214,13 +214,13 @@ cv::Mat readFloatTiff(const fs::path& file) {
 }
 
 void writePng(const fs::path& file, const cv::Mat& image) {
-  const bool depth_ok = image.depth() == CV_8U || image.depth() == CV_16U;
-  const bool channels_ok = image.channels() == 1 || image.channels() == 3;
-  if (image.empty() || !depth_ok || !channels_ok) {
-    throw std::invalid_argument("PNG " + file.string() +
-                                ": the image must be non-empty, 8/16-bit, with 1 or 3 channels");
+  std::vector<unsigned char> bytes;
+  try {
+    bytes = encodePng(image);
+  } catch (const std::invalid_argument& e) {
+    // encodePng's rule for what it takes, with the file it was for.
+    throw std::invalid_argument(file.string() + ": " + e.what());
   }
-  const std::vector<unsigned char> bytes = encodePng(image);
   writeFileAtomically(file, std::as_bytes(std::span<const unsigned char>(bytes)));
 }
 

@@ -153,6 +153,14 @@ TEST_F(ImagesTest, WritePngRejectsOtherTypes) {
   EXPECT_THROW(writePng(dir_ / "a.png", cv::Mat(4, 4, CV_8UC4)), std::invalid_argument);
   EXPECT_THROW(writePng(dir_ / "a.png", cv::Mat()), std::invalid_argument);
   EXPECT_FALSE(fs::exists(dir_ / "a.png"));
+  try {
+    writePng(dir_ / "a.png", cv::Mat(4, 4, CV_32FC1));
+    ADD_FAILURE() << "a float image was written as PNG";
+  } catch (const std::invalid_argument& e) {
+    // The error names the file and what PNG takes.
+    EXPECT_NE(std::string(e.what()).find((dir_ / "a.png").string()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("8/16-bit"), std::string::npos) << e.what();
+  }
 }
 
 TEST_F(ImagesTest, WritePngReplacesAtomically) {
