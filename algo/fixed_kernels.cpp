@@ -14,6 +14,9 @@
 #else
 #define CYLSCAN_AVX2_VARIANT 0
 #endif
+#if CYLSCAN_NEON_VARIANT
+#define CYLSCAN_TARGET_NEON __attribute__((target("fpu=neon")))
+#endif
 #define CYLSCAN_INLINE_BODY inline __attribute__((always_inline))
 
 namespace cylscan::algo {
@@ -327,6 +330,27 @@ bool useAvx2(KernelIsa isa) {
 }
 #endif
 
+#if CYLSCAN_NEON_VARIANT
+// GCC vectorises float arithmetic with ARMv7's NEON only under
+// -funsafe-math-optimizations (NEON flushes denormals to zero), so only the
+// integer fold gains from it; the phase and combine kernels, mostly float, stay
+// the baseline's, and the bits stay IEEE-754's.
+CYLSCAN_TARGET_NEON void fold8Neon(FoldMode mode, const std::uint8_t* f, std::size_t n,
+                                   const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,
+                                   std::uint32_t* a) {
+  foldBody(mode, f, n, w, c, s, a);
+}
+CYLSCAN_TARGET_NEON void fold16Neon(FoldMode mode, const std::uint16_t* f, std::size_t n,
+                                    const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,
+                                    std::uint32_t* a) {
+  foldBody(mode, f, n, w, c, s, a);
+}
+
+bool useNeon(KernelIsa isa) {
+  return resolveKernelIsa(isa) == KernelIsa::kNeon;
+}
+#endif
+
 }  // namespace
 
 void foldKernel(KernelIsa isa, FoldMode mode, const std::uint8_t* frame, std::size_t n,
@@ -335,6 +359,9 @@ void foldKernel(KernelIsa isa, FoldMode mode, const std::uint8_t* frame, std::si
 #if CYLSCAN_AVX2_VARIANT
   if (useAvx512(isa)) return fold8Avx512(mode, frame, n, w, sum_c, sum_s, sum_a);
   if (useAvx2(isa)) return fold8Avx2(mode, frame, n, w, sum_c, sum_s, sum_a);
+#endif
+#if CYLSCAN_NEON_VARIANT
+  if (useNeon(isa)) return fold8Neon(mode, frame, n, w, sum_c, sum_s, sum_a);
 #endif
   (void)isa;
   fold8Baseline(mode, frame, n, w, sum_c, sum_s, sum_a);
@@ -346,6 +373,9 @@ void foldKernel(KernelIsa isa, FoldMode mode, const std::uint16_t* frame, std::s
 #if CYLSCAN_AVX2_VARIANT
   if (useAvx512(isa)) return fold16Avx512(mode, frame, n, w, sum_c, sum_s, sum_a);
   if (useAvx2(isa)) return fold16Avx2(mode, frame, n, w, sum_c, sum_s, sum_a);
+#endif
+#if CYLSCAN_NEON_VARIANT
+  if (useNeon(isa)) return fold16Neon(mode, frame, n, w, sum_c, sum_s, sum_a);
 #endif
   (void)isa;
   fold16Baseline(mode, frame, n, w, sum_c, sum_s, sum_a);

@@ -2,7 +2,9 @@
 # SPDX-License-Identifier: Apache-2.0
 # Counts the instructions per pixel of the phase engine's fold and finalize on
 # an ARM target, under qemu-user, and estimates a Cortex-A76's frame rate:
-#   bench/instructions/count.sh [aarch64|armhf]          (default aarch64)
+#   bench/instructions/count.sh [aarch64|armhf] [auto|baseline]
+# (defaults aarch64, auto: the widest kernels the emulated CPU runs; baseline:
+# the target's baseline build of them, e.g. armhf's without NEON).
 # Needs the cross build of scripts/cross-test.sh (CROSS_BUILD_DIR, default
 # build/cross-<arch>, and its sysroot build/sysroot-<arch>); it builds the
 # cylscan_kernel_work target there.
@@ -19,10 +21,15 @@
 # both, and 1000x800 is extrapolated from them.
 set -euo pipefail
 arch=${1:-aarch64}
+isa=${2:-auto}
+case "$isa" in
+  auto | baseline) ;;
+  *) echo "usage: $0 [aarch64|armhf] [auto|baseline]" >&2; exit 2 ;;
+esac
 case "$arch" in
   aarch64) qemu=qemu-aarch64 nm=aarch64-linux-gnu-nm ;;
   armhf) qemu=qemu-arm nm=arm-linux-gnueabihf-nm ;;
-  *) echo "usage: $0 [aarch64|armhf]" >&2; exit 2 ;;
+  *) echo "usage: $0 [aarch64|armhf] [auto|baseline]" >&2; exit 2 ;;
 esac
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=${CROSS_BUILD_DIR:-$root/build/cross-$arch}
@@ -61,7 +68,7 @@ print(",".join(f"0x{a:x}..0x{b - 1:x}" for a, b in merged))')
 
 count() {  # WIDTH HEIGHT STAGE -> instructions executed in the counted code
   "$qemu" -L "$sysroot" -singlestep -d nochain,exec -dfilter "$ranges" -D /dev/fd/3 \
-    "$program" "$1" "$2" "$3" 3>&1 1>/dev/null | grep -c '^Trace'
+    "$program" "$1" "$2" "$3" "$isa" 3>&1 1>/dev/null | grep -c '^Trace'
 }
 
 sizes=("256 128" "512 128")
@@ -80,7 +87,7 @@ for size in "${sizes[@]}"; do
 done
 
 python3 - "${n[256x128-setup]}" "${n[256x128-fold]}" "${n[256x128-finalize]}" \
-  "${n[512x128-setup]}" "${n[512x128-fold]}" "${n[512x128-finalize]}" "$arch" <<'PY'
+  "${n[512x128-setup]}" "${n[512x128-fold]}" "${n[512x128-finalize]}" "$arch $isa" <<'PY'
 import sys
 s1, f1, z1, s2, f2, z2 = (int(v) for v in sys.argv[1:7])
 arch = sys.argv[7]

@@ -2,11 +2,13 @@
 // A fixed amount of phase-engine work, for counting instructions per pixel on
 // a target the build machine cannot time (bench/instructions/count.sh runs it
 // under qemu-user and counts every instruction it executes):
-//   cylscan_kernel_work WIDTH HEIGHT setup|fold|finalize
+//   cylscan_kernel_work WIDTH HEIGHT setup|fold|finalize [auto|baseline]
 // setup makes the two 25-frame sets; fold also folds all 50 frames; finalize
 // also runs the device's compact finalize. Differences between the three
 // counts, divided by the pixels, are each stage's instructions per pixel: the
 // program's start, the library loading and the frame synthesis cancel out.
+// The last argument picks the kernels' build: the widest this CPU runs (the
+// default) or the target's baseline.
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -26,7 +28,9 @@ namespace {
 using cylscan::FringeSet;
 using cylscan::algo::CompactPhase;
 using cylscan::algo::FringeSetGeometry;
+using cylscan::algo::KernelIsa;
 using cylscan::algo::PhaseEngine;
+using cylscan::algo::PhaseOptions;
 
 constexpr int kFrames = 25;
 constexpr double kTwoPi = 2 * std::numbers::pi;
@@ -80,9 +84,11 @@ int side(const char* text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const std::string stage = argc == 4 ? argv[3] : "";
-  if (stage != "setup" && stage != "fold" && stage != "finalize") {
-    std::fprintf(stderr, "usage: %s WIDTH HEIGHT setup|fold|finalize\n", argv[0]);
+  const std::string stage = argc >= 4 ? argv[3] : "";
+  const std::string isa = argc == 5 ? argv[4] : "auto";
+  if (argc > 5 || (stage != "setup" && stage != "fold" && stage != "finalize") ||
+      (isa != "auto" && isa != "baseline")) {
+    std::fprintf(stderr, "usage: %s WIDTH HEIGHT setup|fold|finalize [auto|baseline]\n", argv[0]);
     return 2;
   }
   const cv::Size size(side(argv[1]), side(argv[2]));
@@ -96,7 +102,9 @@ int main(int argc, char** argv) {
   const FringeSetGeometry high = geometry(5.0, -90.0);
   const FringeSetGeometry low = geometry(5.625, 87.0);
   const std::vector<cv::Mat> sets[2] = {frames(high, 1.0, size), frames(low, 5.0 / 5.625, size)};
-  PhaseEngine engine(size, high, low);
+  PhaseOptions options;
+  options.kernel_isa = isa == "auto" ? KernelIsa::kAuto : KernelIsa::kBaseline;
+  PhaseEngine engine(size, high, low, options);
   CompactPhase out;
   if (stage != "setup") {
     for (int k = 0; k < kFrames; ++k)

@@ -433,6 +433,31 @@ TEST(PhaseEngine, WorkingStateIsAtMost16BytesPerPixel) {
               static_cast<double>(ref.workingStateBytes()) / smallSize().area());
 }
 
+TEST(PhaseEngine, KernelVariantsResolveOnlyToWhatThisBuildAndCpuHave) {
+  // The baseline is always itself; a variant resolves to itself exactly when it
+  // is available, else to a narrower one of its own family, never across.
+  EXPECT_EQ(resolveKernelIsa(KernelIsa::kBaseline), KernelIsa::kBaseline);
+  EXPECT_EQ(resolveKernelIsa(KernelIsa::kNeon),
+            neonKernelsAvailable() ? KernelIsa::kNeon : KernelIsa::kBaseline);
+  EXPECT_EQ(resolveKernelIsa(KernelIsa::kAvx2),
+            avx2KernelsAvailable() ? KernelIsa::kAvx2 : KernelIsa::kBaseline);
+  const KernelIsa avx512 = resolveKernelIsa(KernelIsa::kAvx512);
+  EXPECT_EQ(avx512 == KernelIsa::kAvx512, avx512KernelsAvailable());
+  EXPECT_NE(avx512, KernelIsa::kNeon);
+  // x86 and 32-bit ARM variants never exist in the same build.
+  EXPECT_FALSE(neonKernelsAvailable() && avx2KernelsAvailable());
+  const KernelIsa automatic = resolveKernelIsa(KernelIsa::kAuto);
+  if (neonKernelsAvailable()) {
+    EXPECT_EQ(automatic, KernelIsa::kNeon);
+  }
+  if (avx512KernelsAvailable()) {
+    EXPECT_EQ(automatic, KernelIsa::kAvx512);
+  }
+  if (!neonKernelsAvailable() && !avx2KernelsAvailable()) {
+    EXPECT_EQ(automatic, KernelIsa::kBaseline);
+  }
+}
+
 TEST(PhaseEngine, KernelBuildsAndSetOrderGiveIdenticalBits) {
   const cv::Size size(320, 240);
   const Scene scene = testing::rampScene(size, 120, 60);
@@ -446,7 +471,7 @@ TEST(PhaseEngine, KernelBuildsAndSetOrderGiveIdenticalBits) {
   expectIdenticalMaps(c, d);
   EXPECT_GT(low_first.valid_fraction, 0.99);
   int compared = 0;
-  for (KernelIsa isa : {KernelIsa::kAvx2, KernelIsa::kAvx512}) {
+  for (KernelIsa isa : {KernelIsa::kAvx2, KernelIsa::kAvx512, KernelIsa::kNeon}) {
     if (resolveKernelIsa(isa) != isa) continue;  // not on this CPU
     PhaseOptions wide = fixedOptions();
     wide.kernel_isa = isa;
@@ -536,7 +561,8 @@ TEST(PhaseEngine, CompactFinalizeMatchesFullFinalize) {
     scene.background.colRange(64, 96).setTo(200.0 * count);
     scene.modulation.colRange(64, 96).setTo(100.0 * count);
     for (bool low_first : {false, true}) {
-      for (KernelIsa isa : {KernelIsa::kBaseline, KernelIsa::kAvx2, KernelIsa::kAvx512}) {
+      for (KernelIsa isa :
+           {KernelIsa::kBaseline, KernelIsa::kAvx2, KernelIsa::kAvx512, KernelIsa::kNeon}) {
         if (resolveKernelIsa(isa) != isa) continue;  // not on this CPU
         PhaseOptions o = fixedOptions(bits);
         o.kernel_isa = isa;
@@ -610,7 +636,8 @@ TEST(PhaseEngine, NeighboursDecideTheOrdersOfIsolatedAmbiguousPixels) {
   }
   // The device's compact finalize decides the same pixels, to the bit, with
   // every kernel build this CPU runs.
-  for (KernelIsa isa : {KernelIsa::kBaseline, KernelIsa::kAvx2, KernelIsa::kAvx512}) {
+  for (KernelIsa isa :
+       {KernelIsa::kBaseline, KernelIsa::kAvx2, KernelIsa::kAvx512, KernelIsa::kNeon}) {
     if (resolveKernelIsa(isa) != isa) continue;  // not on this CPU
     PhaseOptions o = fixedOptions();
     o.kernel_isa = isa;

@@ -11,6 +11,7 @@ would notice. This reads the disassembly of fixed_kernels.cpp.o and asks, for
 every kernel, what share of its instructions work on vector registers:
   - aarch64: registers with a lane arrangement (v0.4s, v1.16b) or q registers.
     The kernels are built once there, for the baseline, which has NEON;
+  - armv7l (Debian armhf): q registers in the NEON variant of the fold;
   - x86-64: ymm in the AVX2 variants, zmm in the AVX-512 ones. The baseline
     SSE2 variant is not checked: scalar float code uses xmm registers too,
     so the share would not tell vector code from scalar.
@@ -28,6 +29,13 @@ KERNELS = {
     "aarch64": {
         "pattern": re.compile(r"\bv\d+\.(16b|8b|8h|4h|4s|2s|2d)\b|\bq\d+\b"),
         "functions": ["foldKernel", "phaseKernel", "combineBaseline"],
+    },
+    "armv7l": {
+        # 32-bit ARM: NEON works on q (and d) registers; VFP's scalar float
+        # code uses s and d registers, so only q registers tell NEON apart.
+        # Only the fold has a NEON variant (algo/fixed_kernels.cpp says why).
+        "pattern": re.compile(r"\bq\d+\b"),
+        "functions": ["fold8Neon", "fold16Neon"],
     },
     "x86_64": {
         "pattern": None,  # per variant, below
@@ -72,7 +80,7 @@ def main():
             continue
         if not name or not re.match(r"^\s+[0-9a-f]+:\t", line):
             continue
-        if arch == "aarch64":
+        if arch != "x86_64":
             pattern = KERNELS[arch]["pattern"]
         else:
             pattern = X86_REGISTER["Avx512" if name.endswith("Avx512") else "Avx2"]
