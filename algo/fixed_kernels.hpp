@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: Apache-2.0
 // The per-pixel loops of the fixed-point path. Written once as portable C++ the
 // compiler vectorises, built for the baseline ISA and for the wider ones that
-// algo/kernel_isa.hpp lists; all give the same bits. Sums are kept as uint32 (wrapping arithmetic, no UB); the weights
-// bound them so that, read as int32, they are the exact signed sums.
+// algo/kernel_isa.hpp lists; all give the same bits. Sums are kept as uint32
+// (wrapping arithmetic, no UB); the weights bound them so that, read as int32,
+// they are the exact signed sums.
 #pragma once
 
 #include <cstddef>
