@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "algo/phase_engine.hpp"
+#include "bench/fringe_sets.hpp"
 
 namespace {
 
@@ -25,20 +26,12 @@ using cylscan::algo::PhaseOptions;
 constexpr double kTwoPi = 2 * std::numbers::pi;
 constexpr int kWidth = 1000;
 constexpr int kHeight = 800;
-constexpr int kFrames = 25;
-
-FringeSetGeometry geometry(double period, double start) {
-  FringeSetGeometry g{period, {}};
-  for (int k = 0; k < kFrames; ++k) {
-    g.stage_deg.push_back(start + std::round(period * k / kFrames / 0.004) * 0.004);
-  }
-  return g;
-}
+constexpr int kFrames = cylscan::bench::kFramesPerSet;
 
 // Two sets of 8-bit frames of a ramp over all 9 fringe orders, with sensor noise.
 struct Scan {
-  FringeSetGeometry high = geometry(5.0, -90.0);
-  FringeSetGeometry low = geometry(5.625, 87.0);
+  FringeSetGeometry high = cylscan::bench::highSet();
+  FringeSetGeometry low = cylscan::bench::lowSet();
   std::vector<cv::Mat> frames[2];
 
   Scan() {

@@ -22,6 +22,7 @@
 #include <opencv2/core.hpp>
 
 #include "algo/phase_engine.hpp"
+#include "bench/fringe_sets.hpp"
 
 namespace {
 
@@ -32,16 +33,8 @@ using cylscan::algo::KernelIsa;
 using cylscan::algo::PhaseEngine;
 using cylscan::algo::PhaseOptions;
 
-constexpr int kFrames = 25;
+constexpr int kFrames = cylscan::bench::kFramesPerSet;
 constexpr double kTwoPi = 2 * std::numbers::pi;
-
-FringeSetGeometry geometry(double period, double start) {
-  FringeSetGeometry g{period, {}};
-  for (int k = 0; k < kFrames; ++k) {
-    g.stage_deg.push_back(start + std::round(period * k / kFrames / 0.004) * 0.004);
-  }
-  return g;
-}
 
 // The benchmark's scene (a ramp over all nine fringe orders, A = 110, B = 80)
 // with a cheap noise: each row is the same fringe row plus xorshift noise of
@@ -99,8 +92,8 @@ int main(int argc, char** argv) {
         argv[0], argv[1], argv[2]);
     return 2;
   }
-  const FringeSetGeometry high = geometry(5.0, -90.0);
-  const FringeSetGeometry low = geometry(5.625, 87.0);
+  const FringeSetGeometry high = cylscan::bench::highSet();
+  const FringeSetGeometry low = cylscan::bench::lowSet();
   const std::vector<cv::Mat> sets[2] = {frames(high, 1.0, size), frames(low, 5.0 / 5.625, size)};
   PhaseOptions options;
   options.kernel_isa = isa == "auto" ? KernelIsa::kAuto : KernelIsa::kBaseline;
