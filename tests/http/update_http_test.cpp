@@ -53,9 +53,11 @@ class UpdateHead : public FakeService {
   }
 
   std::atomic<bool> scanning{false};
-  std::unique_ptr<UpdateService> updates;
   std::mutex events_mutex;
   std::vector<std::pair<std::string, json>> events;
+  // Declared after what its callbacks use, so that it is destroyed first: its
+  // destructor joins the install thread, which may still be publishing.
+  std::unique_ptr<UpdateService> updates;
 };
 
 class UpdateApi : public ::testing::Test {
