@@ -69,19 +69,7 @@ mmdebstrap --mode="$mode" --arch="$debarch" --variant=extract --include="$includ
   "deb $mirror bookworm main" "deb $mirror bookworm-updates main" \
   "deb $mirror bookworm-backports main"
 
-# Alternatives that a maintainer script would have made: OpenCV links
-# liblapack.so.3 and libblas.so.3, which Debian provides through
-# update-alternatives (the reference implementations here).
-libdir="$dir/usr/lib/$triplet"
-for lib in blas lapack; do
-  if [ ! -e "$libdir/lib$lib.so.3" ]; then
-    impl=$(ls "$libdir"/{blas,lapack,openblas-pthread,atlas}/lib$lib.so.3 2>/dev/null | head -n1 || true)
-    if [ -z "$impl" ]; then
-      echo "make-sysroot: no lib$lib.so.3 implementation under $libdir" >&2
-      exit 1
-    fi
-    ln -s "${impl#"$libdir"/}" "$libdir/lib$lib.so.3"
-  fi
-done
+# The BLAS/LAPACK alternatives a maintainer script would have made.
+"$here/blas-alternatives.sh" "$dir/usr/lib/$triplet"
 echo "$want" >"$stamp"
 echo "make-sysroot: $dir ready ($debarch, $(du -sh "$dir" | cut -f1))"
