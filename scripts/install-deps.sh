@@ -11,6 +11,7 @@ PKGS=(
   build-essential cmake ninja-build pkg-config git curl
   python3                  # tests/algo/vectorised.py, scripts/lint.sh's clang-tidy groups
   libopencv-dev            # core, imgproc, calib3d (imgcodecs: the tests' own decoder)
+  libopenblas0-serial      # tests: OpenCV's LAPACK for the calibration solves, 8x the reference BLAS's speed
   libpng-dev libtiff-dev zlib1g-dev # frames (PNG) and maps (float TIFF), without imgcodecs' GDAL tree
   libeigen3-dev            # small dense solvers
   nlohmann-json3-dev       # capture.json, --json output
