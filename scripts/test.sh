@@ -70,8 +70,11 @@ budgeted_stage() {
 }
 suite() {
   cmake --preset default &&
-    cmake --build --preset default -j "$(nproc)" &&
-    ctest --preset default -j "$(nproc)"
+    cmake --build --preset default -j "$(nproc)" || return 1
+  if ! ctest --preset default -j "$(nproc)"; then
+    bash scripts/failed-tests-digest.sh build/default
+    return 1
+  fi
 }
 
 if ! bash scripts/install-deps.sh; then
