@@ -92,3 +92,22 @@ export async function getBlob(path, signal) {
 export async function remove(path) {
   await request(path, { method: 'DELETE' });
 }
+
+// What a call made by newestOnly() gives when a later call has answered first.
+export const STALE = Symbol('a stale answer');
+
+// Wraps an async function whose calls overlap so that an answer is never
+// taken after that of a call made later: such a call resolves to STALE.
+// Answers of requests can come back out of order (the daemon serves them on
+// several threads), and what is shown must not go back to an older state.
+export function newestOnly(fn) {
+  let asked = 0;
+  let answered = 0;
+  return async (...args) => {
+    const call = ++asked;
+    const answer = await fn(...args);
+    if (call < answered) return STALE;
+    answered = call;
+    return answer;
+  };
+}

@@ -7,7 +7,7 @@
 // history (checks.js), and the system with its A/B updates (system.js).
 
 import './app.css';
-import { getBlob, getBytes, getJson, isStatus, onAuthNeeded, postJson, remove, setToken, token } from './api.js';
+import { STALE, getBlob, getBytes, getJson, isStatus, newestOnly, onAuthNeeded, postJson, remove, setToken, token } from './api.js';
 import { CalibrationView } from './calibration.js';
 import { ChecksView } from './checks.js';
 import { connectEvents } from './events.js';
@@ -76,9 +76,16 @@ function showState(value, capture = null) {
   if (calibration && value) calibration.setHeadState(value);
 }
 
+// Status requests overlap (state events, installs, scans ending), and under
+// load their answers can come back out of order: an answer older than the
+// one shown would put back what that one replaced (a calibration shown as
+// not installed just after its install). Such an answer is dropped.
+const getStatus = newestOnly(() => getJson('status'));
+
 async function refreshStatus() {
   try {
-    const status = await getJson('status');
+    const status = await getStatus();
+    if (status === STALE) return;
     showState(status.state, status.capture);
     $('st-board').textContent = status.board ?? '–';
     $('st-version').textContent = status.version ?? '–';
