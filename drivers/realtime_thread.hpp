@@ -15,7 +15,7 @@ namespace cylscan::drivers {
 
 struct RealtimeOptions {
   int priority = 80;        // SCHED_FIFO priority, within sched_get_priority_min/max
-  bool lock_memory = true;  // mlockall(MCL_CURRENT | MCL_FUTURE) for the whole process
+  bool lock_memory = true;  // mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT), the whole process
 };
 
 class RealtimeThread {
