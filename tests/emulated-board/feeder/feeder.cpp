@@ -19,6 +19,12 @@
 //       the bundle's executed angles against the angles the feeder counted.
 //   cylscan-emulated-feeder compare PHASE_A PHASE_B --max-rms R --max-mismatch F
 //       two `cylscan phase` outputs: the valid sets and the absolute phase.
+//   cylscan-emulated-feeder calibration PHASE --out FILE
+//       a quasi-calibration file for the camera of a `cylscan phase` output:
+//       every pixel valid, its phase range that of the whole map, and a
+//       plane's coordinates. Not a head's geometry: it lets the daemon
+//       reconstruct every pixel, so that what a calibrated scan costs the
+//       device in memory is measured.
 #include <fcntl.h>
 #include <linux/videodev2.h>
 #include <poll.h>
@@ -51,12 +57,14 @@
 
 #include <opencv2/core.hpp>
 
+#include "algo/quasi_calibration.hpp"
 #include "drivers/sim/camera_model.hpp"
 #include "drivers/sim/head_config.hpp"
 #include "drivers/sim/projector.hpp"
 #include "drivers/sim/renderer.hpp"
 #include "drivers/sim/scene.hpp"
 #include "drivers/sim/stage.hpp"
+#include "formats/atomic_file.hpp"
 #include "formats/capture_bundle.hpp"
 #include "formats/images.hpp"
 #include "formats/png.hpp"
@@ -593,6 +601,48 @@ int runCompare(const Args& a) {
              : 1;
 }
 
+int runCalibration(const Args& a) {
+  if (a.positional.size() != 1) throw std::invalid_argument("calibration PHASE --out FILE");
+  const fs::path dir = a.positional[0];
+  const cv::Mat phase = formats::readFloatTiff(dir / "absolute.tiff");
+  const cv::Mat invalid = formats::readPng(dir / "invalid.png");
+  float lo = std::numeric_limits<float>::infinity();
+  float hi = -lo;
+  for (int y = 0; y < phase.rows; ++y) {
+    for (int x = 0; x < phase.cols; ++x) {
+      if (invalid.at<std::uint8_t>(y, x) != 0) continue;
+      lo = std::min(lo, phase.at<float>(y, x));
+      hi = std::max(hi, phase.at<float>(y, x));
+    }
+  }
+  if (!(hi > lo)) throw std::invalid_argument("no valid phase range in " + dir.string());
+  const auto n = static_cast<std::size_t>(phase.total());
+  std::vector<algo::PixelPolynomial> pixels(n);
+  for (int y = 0; y < phase.rows; ++y) {
+    for (int x = 0; x < phase.cols; ++x) {
+      algo::PixelPolynomial& p =
+          pixels[static_cast<std::size_t>(y) * static_cast<std::size_t>(phase.cols) +
+                 static_cast<std::size_t>(x)];
+      p.phase_centre = 0.5f * (lo + hi);
+      p.phase_inv_half = 2.0f / (hi - lo);
+      p.x[0] = 0.1f * static_cast<float>(x);
+      p.y[0] = 0.1f * static_cast<float>(y);
+      p.z[0] = 400.0f;
+      p.z[1] = 20.0f;
+    }
+  }
+  algo::QuasiCalibrationInfo info;
+  info.pose_count = 14;
+  info.min_poses = 6;
+  const algo::QuasiCalibration calibration(phase.size(), std::vector<std::uint8_t>(n, 1),
+                                           std::move(pixels), info);
+  const std::vector<std::byte> bytes = calibration.serialize();
+  formats::writeFileAtomically(a.get("out"), bytes);
+  std::cout << phase.cols << "x" << phase.rows << ", phase " << lo << " to " << hi << " rad, "
+            << bytes.size() << " bytes\n";
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -602,7 +652,9 @@ int main(int argc, char** argv) {
     if (cmd == "run") return runFeeder(a);
     if (cmd == "angles") return runAngles(a);
     if (cmd == "compare") return runCompare(a);
-    std::cerr << "usage: " << argv[0] << " run|angles|compare ... (see the source's header)\n";
+    if (cmd == "calibration") return runCalibration(a);
+    std::cerr << "usage: " << argv[0]
+              << " run|angles|compare|calibration ... (see the source's header)\n";
     return 2;
   } catch (const std::exception& e) {
     std::cerr << "feeder: " << e.what() << "\n";
