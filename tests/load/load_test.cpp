@@ -265,10 +265,13 @@ ScanRun scanOnce(const fs::path& board, int load_s = 0) {
   if (id.empty()) return run;
   const auto scan_started = std::chrono::steady_clock::now();
   if (load_s > 0) {
-    const auto load_started = std::chrono::steady_clock::now();
     TempDir wrk_dir;
     SideClients side(daemon.process().port(), load_s);
     run.wrk = runWrk(wrk_dir, client.baseUrl(), load_s);
+    // wrk loads for load_s seconds and exits: the load began that long ago.
+    const double load_began_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - scan_started).count() -
+        load_s;
     side.join();
     run.idle_held = side.idleAnswered();
     run.slow_held = side.slowHeld();
@@ -290,18 +293,15 @@ ScanRun scanOnce(const fs::path& board, int load_s = 0) {
       // A scan whose unloaded twins woke late (a machine whose host steals
       // its CPU) took longer than this one needs, and the load was cut from
       // their time: it may outlast the scan. It then loaded the scan from
-      // its start to the scan's end, which must still be most of the scan
-      // for its lateness to be the loaded one.
-      const double offset_s = std::chrono::duration<double>(load_started - scan_started).count();
+      // its own start to the scan's end, which must still be at least half
+      // of the scan for its lateness to be the loaded one.
       const double duration_s = state.value("duration_s", 0.0);
       EXPECT_EQ(state.value("state", ""), "done") << state.dump();
-      EXPECT_GE(duration_s - offset_s, 0.5 * duration_s)
-          << "the load began " << offset_s << " s into a scan of " << duration_s
+      EXPECT_GE(duration_s - load_began_s, 0.5 * duration_s)
+          << "the load began " << load_began_s << " s into a scan of " << duration_s
           << " s and outlasted it: it loaded less than half of it: " << state.dump();
-      std::printf(
-          "[ load     ] the scan ended %.1f s into the load, which loaded its last %.1f of "
-          "%.1f s\n",
-          duration_s - offset_s, duration_s - offset_s, duration_s);
+      std::printf("[ load     ] the load began %.1f s into a scan of %.1f s and outlasted it\n",
+                  load_began_s, duration_s);
     }
   }
   run.scan = finishScan(client, id);
