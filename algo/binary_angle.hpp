@@ -6,9 +6,12 @@
 //
 // binaryAtan2 reduces (C, S) to the first octant, forms t = min/max with one
 // IEEE-754 single-precision division (correctly rounded, hence the same bits on
-// every IEEE CPU: x86 SSE/AVX, ARM VFP/NEON), quantises t to Q15 and evaluates an
-// odd minimax polynomial of atan in unsigned 32-bit fixed point (Horner in
-// u = t², every partial sum positive by construction), then unfolds the octant.
+// every IEEE CPU: x86 SSE/AVX, ARM VFP/NEON), and evaluates an odd minimax
+// polynomial of atan in t with single-precision multiplies and subtractions in a
+// fixed order (Horner in u = t², no fused multiply-add: the build sets
+// -ffp-contract=off), then unfolds the octant in integers. Float arithmetic here
+// is cheaper than a 32-bit fixed-point Horner: a vector float multiply is one
+// operation, a 32-bit integer multiply two, and t needs no quantising step.
 // Max error against the exact atan2 is below 1 LSB (2π/65536 ≈ 9.6e-5 rad);
 // tests measure it.
 #pragma once
@@ -28,31 +31,29 @@ constexpr double binaryAngleToRadians(BinaryAngle a) {
 }
 
 namespace binary_angle_detail {
-// Coefficients of atan(t) / t in units of 2^-19 turn, for u = t² in Q15:
-// atan(t)·2^19/(2π) ≈ t·(c1 − u·(c3 − u·(c5 − u·(c7 − u·c9)))). Fitted (minimax,
-// Lawson iterations) to the octant t ∈ [0, 1]; all partial sums stay positive.
-inline constexpr std::uint32_t kC1 = 83432;
-inline constexpr std::uint32_t kC3 = 27562;
-inline constexpr std::uint32_t kC5 = 15033;
-inline constexpr std::uint32_t kC7 = 7106;
-inline constexpr std::uint32_t kC9 = 1739;
-inline constexpr std::uint32_t kHalfQ15 = 1u << 14;
-
-// (a·b) / 2^15 rounded, for a·b + 2^14 < 2^32.
-constexpr std::uint32_t mulQ15(std::uint32_t a, std::uint32_t b) {
-  return (a * b + kHalfQ15) >> 15;
-}
+// Coefficients of atan(t) / t in units of 2^-19 turn:
+// atan(t)·2^19/(2π) ≈ t·(c1 − u·(c3 − u·(c5 − u·(c7 − u·c9)))), u = t². Fitted
+// (minimax, Lawson iterations) to the octant t ∈ [0, 1].
+inline constexpr float kC1 = 83432.0f;
+inline constexpr float kC3 = 27562.0f;
+inline constexpr float kC5 = 15033.0f;
+inline constexpr float kC7 = 7106.0f;
+inline constexpr float kC9 = 1739.0f;
 }  // namespace binary_angle_detail
 
-// atan of t = t_q15 / 32768 ∈ [0, 1], in units of 2^-19 turn (so [0, 2^16] for the octant).
-constexpr std::uint32_t octantAtanQ15(std::uint32_t t_q15) {
+// atan of t ∈ [0, 1], rounded to units of 2^-19 turn (so [0, 2^16] for the octant).
+inline std::uint32_t octantAtan(float t) {
   using namespace binary_angle_detail;
-  const std::uint32_t u = mulQ15(t_q15, t_q15);
-  std::uint32_t p = kC7 - mulQ15(u, kC9);
-  p = kC5 - mulQ15(u, p);
-  p = kC3 - mulQ15(u, p);
-  p = kC1 - mulQ15(u, p);
-  return mulQ15(t_q15, p);
+  const float u = t * t;
+  float p = kC7 - u * kC9;
+  p = kC5 - u * p;
+  p = kC3 - u * p;
+  p = kC1 - u * p;
+  // t·p is in [0, 65537): adding a half and truncating rounds it, in float
+  // operations that give the same bits everywhere (std::lround would call the
+  // C library).
+  return static_cast<std::uint32_t>(
+      static_cast<std::int32_t>(t * p + 0.5f));  // NOLINT(bugprone-incorrect-roundings)
 }
 
 // A point (c, s) in polar form: its binary angle and its magnitude.
@@ -78,15 +79,10 @@ inline BinaryPolar binaryPolar(std::int32_t s, std::int32_t c) {
   // The one division: IEEE-754 single precision, correctly rounded, reproducible.
   const float den_f = static_cast<float>(static_cast<std::int32_t>(den));
   const float ratio = static_cast<float>(static_cast<std::int32_t>(num)) / den_f;
-  // ratio is in [0, 1]: adding a half and truncating rounds it, in float
-  // operations that give the same bits everywhere (std::lround would call the
-  // C library).
-  const auto t_q15 = static_cast<std::uint32_t>(
-      static_cast<std::int32_t>(ratio * 32768.0f + 0.5f));  // NOLINT(bugprone-incorrect-roundings)
-  std::uint32_t a = octantAtanQ15(t_q15);                   // 2^-19 turn, [0, 2^16]
-  a += steep & ((1u << 17) - 2 * a);                        // steep: a quarter turn minus a
-  a += neg_c & ((1u << 18) - 2 * a);                        // c < 0: half a turn minus a
-  a += neg_s & ((1u << 19) - 2 * a);                        // s < 0: a full turn minus a
+  std::uint32_t a = octantAtan(ratio);  // 2^-19 turn, [0, 2^16]
+  a += steep & ((1u << 17) - 2 * a);    // steep: a quarter turn minus a
+  a += neg_c & ((1u << 18) - 2 * a);    // c < 0: half a turn minus a
+  a += neg_s & ((1u << 19) - 2 * a);    // s < 0: a full turn minus a
   // hypot = den·sqrt(1 + ratio²): a minimax polynomial in ratio² (relative error
   // 8.4e-6), IEEE float multiplies and adds in a fixed order, no sqrt.
   const float u = ratio * ratio;

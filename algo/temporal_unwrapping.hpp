@@ -54,13 +54,16 @@ inline FixedOrders unwrapFixed(const FixedUnwrapParams& p, BinaryAngle phi_high,
   // raw is in [−2, R + 1] and orders_high = ceil(R) ≥ 2, so one add and one
   // subtract bring K into [0, orders_high). The low order raw − [φh < φl] is in
   // [−3, R + 1] with orders_low = ceil(R − 1) ≥ 1: three of each cover it.
-  std::int32_t k = raw < 0 ? raw + p.orders_high : raw;
-  out.high = k >= p.orders_high ? k - p.orders_high : k;
-  std::int32_t kl = raw - (phi_high < phi_low ? 1 : 0);
+  // The corrections are masks, not selects: a chain of selects on one value
+  // is threaded by the compiler into branches that its vectoriser gives up on.
+  const auto all_if = [](bool c) { return -static_cast<std::int32_t>(c); };
+  const std::int32_t k = raw + (p.orders_high & all_if(raw < 0));
+  out.high = k - (p.orders_high & all_if(k >= p.orders_high));
+  std::int32_t kl = raw - static_cast<std::int32_t>(phi_high < phi_low);
   for (int i = 0; i < 3; ++i)
-    kl = kl < 0 ? kl + p.orders_low : kl;
+    kl += p.orders_low & all_if(kl < 0);
   for (int i = 0; i < 3; ++i)
-    kl = kl >= p.orders_low ? kl - p.orders_low : kl;
+    kl -= p.orders_low & all_if(kl >= p.orders_low);
   out.low = kl;
   return out;
 }

@@ -21,13 +21,21 @@ double wrappedError(BinaryAngle a, double exact) {
 }
 
 TEST(BinaryAngle, OctantPolynomialIsExactToAFractionOfAnLsbForEveryInput) {
+  // Every Q16 fraction of the octant, and the floats just below and above each,
+  // so that the end points and any t a division can give are near a tested one.
   double worst = 0;
-  for (std::uint32_t t = 0; t <= 32768; ++t) {
-    const double exact = std::atan(t / 32768.0) / kTwoPi * 524288.0;  // 2^-19 turn
-    worst = std::max(worst, std::abs(octantAtanQ15(t) - exact));
+  for (std::uint32_t q = 0; q <= 65536; ++q) {
+    const float centre = static_cast<float>(q) / 65536.0f;
+    for (const float t : {std::nextafter(centre, 0.0f), centre, std::nextafter(centre, 1.0f)}) {
+      if (t < 0.0f || t > 1.0f) continue;
+      const double exact = std::atan(static_cast<double>(t)) / kTwoPi * 524288.0;  // 2^-19 turn
+      worst = std::max(worst, std::abs(octantAtan(t) - exact));
+    }
   }
   std::printf("octant polynomial: max error %.3f LSB of 2^-16 turn\n", worst / 8);
   EXPECT_LT(worst / 8, 0.5);
+  EXPECT_EQ(octantAtan(0.0f), 0u);
+  EXPECT_EQ(octantAtan(1.0f), 65536u);  // the diagonal: exactly an eighth of a turn
 }
 
 TEST(BinaryAngle, Atan2MatchesStdAtan2WithinOneLsb) {
