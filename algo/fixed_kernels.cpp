@@ -27,9 +27,6 @@ constexpr std::uint8_t kLowModulationBit = 1;
 constexpr std::uint8_t kSaturatedBit = 2;
 constexpr std::uint8_t kOrderInconsistentBit = 4;
 
-// Pixels per block of the combine pass: its temporaries stay in L1.
-constexpr std::size_t kBlock = 512;
-
 // ---- fold ------------------------------------------------------------------
 
 template <FoldMode kMode, typename Pixel>
@@ -71,18 +68,70 @@ CYLSCAN_INLINE_BODY void foldBody(FoldMode mode, const Pixel* __restrict frame, 
 
 // ---- phase -----------------------------------------------------------------
 
+// One pixel's phase and modulation code from its sums.
+struct PhaseCode {
+  BinaryAngle phase;
+  std::uint32_t code;
+};
+
+CYLSCAN_INLINE_BODY PhaseCode phaseCode(std::uint32_t sum_c, std::uint32_t sum_s,
+                                        float code_per_sum) {
+  const BinaryPolar polar =
+      binaryPolar(static_cast<std::int32_t>(sum_s), static_cast<std::int32_t>(sum_c));
+  float code = polar.magnitude * code_per_sum + 0.5f;
+  code = code < 65535.0f ? code : 65535.0f;
+  return {polar.angle, static_cast<std::uint32_t>(static_cast<std::int32_t>(code))};
+}
+
 CYLSCAN_INLINE_BODY void phaseBody(const std::uint32_t* __restrict sum_c,
                                    const std::uint32_t* __restrict sum_s, std::size_t n,
                                    float code_per_sum, BinaryAngle* __restrict phase,
                                    std::uint16_t* __restrict modulation) {
   for (std::size_t i = 0; i < n; ++i) {
-    const auto c = static_cast<std::int32_t>(sum_c[i]);
-    const auto s = static_cast<std::int32_t>(sum_s[i]);
-    const BinaryPolar polar = binaryPolar(s, c);
-    float code = polar.magnitude * code_per_sum + 0.5f;
-    code = code < 65535.0f ? code : 65535.0f;
-    phase[i] = polar.angle;
-    modulation[i] = static_cast<std::uint16_t>(static_cast<std::int32_t>(code));
+    const PhaseCode pc = phaseCode(sum_c[i], sum_s[i], code_per_sum);
+    phase[i] = pc.phase;
+    modulation[i] = static_cast<std::uint16_t>(pc.code);
+  }
+}
+
+// ---- the fold that completes a set -------------------------------------------
+
+template <FoldMode kMode, typename Pixel>
+CYLSCAN_INLINE_BODY void foldPhaseLoop(const Pixel* __restrict frame, std::size_t n, FoldWeights w,
+                                       float code_per_sum, std::uint32_t* __restrict sum_c,
+                                       const std::uint32_t* __restrict sum_s,
+                                       std::uint32_t* __restrict sum_a) {
+  const auto qc = static_cast<std::uint32_t>(w.c);
+  const auto qs = static_cast<std::uint32_t>(w.s);
+  const auto qa = static_cast<std::uint32_t>(w.a);
+  const std::uint32_t saturation = w.saturation;
+  const std::uint32_t max_pixel = w.max_pixel;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint32_t v = frame[i];
+    const std::uint32_t flag = v >= saturation ? 1u : 0u;
+    if constexpr (sizeof(Pixel) > 1) v = v < max_pixel ? v : max_pixel;
+    const std::uint32_t c = kMode == FoldMode::kAccumulate ? sum_c[i] : 0u;
+    const std::uint32_t s = kMode == FoldMode::kAccumulate ? sum_s[i] : 0u;
+    const std::uint32_t a = kMode == FoldMode::kStartScan ? 0u : sum_a[i];
+    const PhaseCode pc = phaseCode(c + qc * v, s + qs * v, code_per_sum);
+    sum_c[i] = pc.phase | (pc.code << 16);
+    sum_a[i] = (a + qa * v) | flag;
+  }
+}
+
+template <typename Pixel>
+CYLSCAN_INLINE_BODY void foldPhaseBody(FoldMode mode, const Pixel* __restrict frame, std::size_t n,
+                                       const FoldWeights& w, float code_per_sum,
+                                       std::uint32_t* __restrict sum_c,
+                                       const std::uint32_t* __restrict sum_s,
+                                       std::uint32_t* __restrict sum_a) {
+  switch (mode) {
+    case FoldMode::kAccumulate:
+      return foldPhaseLoop<FoldMode::kAccumulate>(frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
+    case FoldMode::kStartSet:
+      return foldPhaseLoop<FoldMode::kStartSet>(frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
+    case FoldMode::kStartScan:
+      return foldPhaseLoop<FoldMode::kStartScan>(frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
   }
 }
 
@@ -121,10 +170,11 @@ CYLSCAN_INLINE_BODY CombinedPixel combinePixel(const CombineParams& p, BinaryAng
   return px;
 }
 
-CYLSCAN_INLINE_BODY std::size_t combineBlock(
-    const CombineParams& p, std::size_t n, const BinaryAngle* __restrict phase_high,
-    const BinaryAngle* __restrict phase_low, const std::uint16_t* __restrict mod_high,
-    const std::uint16_t* __restrict mod_low, const std::uint32_t* __restrict sum_a,
+// The output maps are restrict-qualified parameters, not a struct's members:
+// with the latter, GCC 12 left this loop scalar.
+CYLSCAN_INLINE_BODY std::size_t combineMaps(
+    const CombineParams& p, std::size_t n, const std::uint32_t* __restrict sum_a,
+    const PackedPhase* __restrict high, const PackedPhase* __restrict low,
     float* __restrict wrapped_high, float* __restrict wrapped_low,
     float* __restrict modulation_high, float* __restrict modulation_low, float* __restrict texture,
     float* __restrict absolute, float* __restrict fused, std::int16_t* __restrict fringe_order,
@@ -135,10 +185,10 @@ CYLSCAN_INLINE_BODY std::size_t combineBlock(
   const float counts_per_texture = p.counts_per_texture;
   std::size_t valid = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const BinaryAngle h = phase_high[i];
-    const BinaryAngle l = phase_low[i];
-    const std::uint32_t mh = mod_high[i];
-    const std::uint32_t ml = mod_low[i];
+    const BinaryAngle h = packedAngle(high[i]);
+    const BinaryAngle l = packedAngle(low[i]);
+    const std::uint32_t mh = packedCode(high[i]);
+    const std::uint32_t ml = packedCode(low[i]);
     const std::uint32_t a = sum_a[i];
     const CombinedPixel px = combinePixel(params, h, l, mh, ml, a);
     const std::uint32_t bad = px.bad;
@@ -157,23 +207,34 @@ CYLSCAN_INLINE_BODY std::size_t combineBlock(
   return valid;
 }
 
-// The compact outputs of one block: the same arithmetic as combineBlock up to the
-// conversion to radians, which is left to the reader of the compact maps.
-CYLSCAN_INLINE_BODY std::size_t combineCompactBlock(
-    const CombineParams& p, std::size_t n, const BinaryAngle* __restrict phase_high,
-    const BinaryAngle* __restrict phase_low, const std::uint16_t* __restrict mod_high,
-    const std::uint16_t* __restrict mod_low, const std::uint32_t* __restrict sum_a,
-    std::int32_t* __restrict absolute, float* __restrict fused, std::uint8_t* __restrict invalid,
-    std::uint16_t* __restrict texture) {
+CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t n,
+                                            const std::uint32_t* sum_a, const PackedPhase* high,
+                                            const PackedPhase* low, const CombineOutputs& out) {
+  return combineMaps(p, n, sum_a, high, low, out.wrapped_high, out.wrapped_low, out.modulation_high,
+                     out.modulation_low, out.texture, out.absolute, out.fused, out.fringe_order,
+                     out.invalid);
+}
+
+// The compact outputs: the same arithmetic as above up to the conversion to
+// radians, which is left to the reader of the compact maps.
+CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t n,
+                                            const std::uint32_t* __restrict sum_a,
+                                            const PackedPhase* __restrict high,
+                                            const PackedPhase* __restrict low,
+                                            const CompactOutputs& out) {
   const CombineParams params = p;  // a local copy: nothing the loop stores can alias it
   const float texture_code_per_sum = p.texture_code_per_sum;
   constexpr std::uint32_t kInvalidAbsolute = 0x80000000u;  // INT32_MIN
+  std::int32_t* __restrict absolute = out.absolute;
+  float* __restrict fused = out.fused;
+  std::uint8_t* __restrict invalid = out.invalid;
+  std::uint16_t* __restrict texture = out.texture;
   std::size_t valid = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const BinaryAngle h = phase_high[i];
-    const BinaryAngle l = phase_low[i];
-    const std::uint32_t mh = mod_high[i];
-    const std::uint32_t ml = mod_low[i];
+    const BinaryAngle h = packedAngle(high[i]);
+    const BinaryAngle l = packedAngle(low[i]);
+    const std::uint32_t mh = packedCode(high[i]);
+    const std::uint32_t ml = packedCode(low[i]);
     const std::uint32_t a = sum_a[i];
     const CombinedPixel px = combinePixel(params, h, l, mh, ml, a);
     const std::uint32_t bad = px.bad;
@@ -192,134 +253,53 @@ CYLSCAN_INLINE_BODY std::size_t combineCompactBlock(
   return valid;
 }
 
-CYLSCAN_INLINE_BODY std::size_t combineBlockTo(const CombineParams& p, std::size_t m,
-                                               std::size_t start, const BinaryAngle* ph,
-                                               const BinaryAngle* pl, const std::uint16_t* mh,
-                                               const std::uint16_t* ml, const std::uint32_t* sum_a,
-                                               const CombineOutputs& out) {
-  return combineBlock(p, m, ph, pl, mh, ml, sum_a + start, out.wrapped_high + start,
-                      out.wrapped_low + start, out.modulation_high + start,
-                      out.modulation_low + start, out.texture + start, out.absolute + start,
-                      out.fused + start, out.fringe_order + start, out.invalid + start);
-}
-
-CYLSCAN_INLINE_BODY std::size_t combineBlockTo(const CombineParams& p, std::size_t m,
-                                               std::size_t start, const BinaryAngle* ph,
-                                               const BinaryAngle* pl, const std::uint16_t* mh,
-                                               const std::uint16_t* ml, const std::uint32_t* sum_a,
-                                               const CompactOutputs& out) {
-  return combineCompactBlock(p, m, ph, pl, mh, ml, sum_a + start, out.absolute + start,
-                             out.fused + start, out.invalid + start, out.texture + start);
-}
-
-template <typename Outputs>
-CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t n,
-                                            const std::uint32_t* sum_c, const std::uint32_t* sum_s,
-                                            const std::uint32_t* sum_a,
-                                            const BinaryAngle* first_phase,
-                                            const std::uint16_t* first_modulation,
-                                            const Outputs& out) {
-  const float code_per_sum = p.second_code_per_sum;
-  alignas(64) BinaryAngle second_phase[kBlock];
-  alignas(64) std::uint16_t second_modulation[kBlock];
-  std::size_t valid = 0;
-  for (std::size_t start = 0; start < n; start += kBlock) {
-    const std::size_t m = n - start < kBlock ? n - start : kBlock;
-    phaseBody(sum_c + start, sum_s + start, m, code_per_sum, second_phase, second_modulation);
-    const BinaryAngle* stored_phase = first_phase + start;
-    const std::uint16_t* stored_mod = first_modulation + start;
-    const BinaryAngle* ph = p.second_is_high ? second_phase : stored_phase;
-    const BinaryAngle* pl = p.second_is_high ? stored_phase : second_phase;
-    const std::uint16_t* mh = p.second_is_high ? second_modulation : stored_mod;
-    const std::uint16_t* ml = p.second_is_high ? stored_mod : second_modulation;
-    valid += combineBlockTo(p, m, start, ph, pl, mh, ml, sum_a, out);
-  }
-  return valid;
-}
-
 // ---- the ISA variants --------------------------------------------------------
 
-void fold8Baseline(FoldMode mode, const std::uint8_t* f, std::size_t n, const FoldWeights& w,
-                   std::uint32_t* c, std::uint32_t* s, std::uint32_t* a) {
-  foldBody(mode, f, n, w, c, s, a);
-}
-void fold16Baseline(FoldMode mode, const std::uint16_t* f, std::size_t n, const FoldWeights& w,
-                    std::uint32_t* c, std::uint32_t* s, std::uint32_t* a) {
-  foldBody(mode, f, n, w, c, s, a);
-}
-void phaseBaseline(const std::uint32_t* c, const std::uint32_t* s, std::size_t n, float k,
-                   BinaryAngle* phase, std::uint16_t* mod) {
-  phaseBody(c, s, n, k, phase, mod);
-}
-std::size_t combineBaseline(const CombineParams& p, std::size_t n, const std::uint32_t* c,
-                            const std::uint32_t* s, const std::uint32_t* a,
-                            const BinaryAngle* phase, const std::uint16_t* mod,
-                            const CombineOutputs& out) {
-  return combineBody(p, n, c, s, a, phase, mod, out);
-}
-std::size_t combineBaseline(const CombineParams& p, std::size_t n, const std::uint32_t* c,
-                            const std::uint32_t* s, const std::uint32_t* a,
-                            const BinaryAngle* phase, const std::uint16_t* mod,
-                            const CompactOutputs& out) {
-  return combineBody(p, n, c, s, a, phase, mod, out);
-}
+// Every kernel of one ISA: the same bodies, compiled with the target's
+// attribute (empty for the baseline) and named with its suffix.
+#define CYLSCAN_KERNELS_FOR(SUFFIX, TARGET)                                                \
+  TARGET void fold8##SUFFIX(FoldMode mode, const std::uint8_t* f, std::size_t n,           \
+                            const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,      \
+                            std::uint32_t* a) {                                            \
+    foldBody(mode, f, n, w, c, s, a);                                                      \
+  }                                                                                        \
+  TARGET void fold16##SUFFIX(FoldMode mode, const std::uint16_t* f, std::size_t n,         \
+                             const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,     \
+                             std::uint32_t* a) {                                           \
+    foldBody(mode, f, n, w, c, s, a);                                                      \
+  }                                                                                        \
+  TARGET void foldPhase8##SUFFIX(FoldMode mode, const std::uint8_t* f, std::size_t n,      \
+                                 const FoldWeights& w, float k, std::uint32_t* c,          \
+                                 const std::uint32_t* s, std::uint32_t* a) {               \
+    foldPhaseBody(mode, f, n, w, k, c, s, a);                                              \
+  }                                                                                        \
+  TARGET void foldPhase16##SUFFIX(FoldMode mode, const std::uint16_t* f, std::size_t n,    \
+                                  const FoldWeights& w, float k, std::uint32_t* c,         \
+                                  const std::uint32_t* s, std::uint32_t* a) {              \
+    foldPhaseBody(mode, f, n, w, k, c, s, a);                                              \
+  }                                                                                        \
+  TARGET void phase##SUFFIX(const std::uint32_t* c, const std::uint32_t* s, std::size_t n, \
+                            float k, BinaryAngle* phase, std::uint16_t* mod) {             \
+    phaseBody(c, s, n, k, phase, mod);                                                     \
+  }                                                                                        \
+  TARGET std::size_t combine##SUFFIX(const CombineParams& p, std::size_t n,                \
+                                     const std::uint32_t* a, const PackedPhase* high,      \
+                                     const PackedPhase* low, const CombineOutputs& out) {  \
+    return combineBody(p, n, a, high, low, out);                                           \
+  }                                                                                        \
+  TARGET std::size_t combine##SUFFIX(const CombineParams& p, std::size_t n,                \
+                                     const std::uint32_t* a, const PackedPhase* high,      \
+                                     const PackedPhase* low, const CompactOutputs& out) {  \
+    return combineBody(p, n, a, high, low, out);                                           \
+  }
+
+// Out of line, as the other ISAs' are, so that each kernel keeps its own
+// symbol: tests/algo/vectorised.py reads their instructions by name.
+CYLSCAN_KERNELS_FOR(Baseline, __attribute__((noinline)))
 
 #if CYLSCAN_AVX2_VARIANT
-CYLSCAN_TARGET_AVX2 void fold8Avx2(FoldMode mode, const std::uint8_t* f, std::size_t n,
-                                   const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,
-                                   std::uint32_t* a) {
-  foldBody(mode, f, n, w, c, s, a);
-}
-CYLSCAN_TARGET_AVX2 void fold16Avx2(FoldMode mode, const std::uint16_t* f, std::size_t n,
-                                    const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,
-                                    std::uint32_t* a) {
-  foldBody(mode, f, n, w, c, s, a);
-}
-CYLSCAN_TARGET_AVX2 void phaseAvx2(const std::uint32_t* c, const std::uint32_t* s, std::size_t n,
-                                   float k, BinaryAngle* phase, std::uint16_t* mod) {
-  phaseBody(c, s, n, k, phase, mod);
-}
-CYLSCAN_TARGET_AVX2 std::size_t combineAvx2(const CombineParams& p, std::size_t n,
-                                            const std::uint32_t* c, const std::uint32_t* s,
-                                            const std::uint32_t* a, const BinaryAngle* phase,
-                                            const std::uint16_t* mod, const CombineOutputs& out) {
-  return combineBody(p, n, c, s, a, phase, mod, out);
-}
-CYLSCAN_TARGET_AVX2 std::size_t combineAvx2(const CombineParams& p, std::size_t n,
-                                            const std::uint32_t* c, const std::uint32_t* s,
-                                            const std::uint32_t* a, const BinaryAngle* phase,
-                                            const std::uint16_t* mod, const CompactOutputs& out) {
-  return combineBody(p, n, c, s, a, phase, mod, out);
-}
-CYLSCAN_TARGET_AVX512 void fold8Avx512(FoldMode mode, const std::uint8_t* f, std::size_t n,
-                                       const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,
-                                       std::uint32_t* a) {
-  foldBody(mode, f, n, w, c, s, a);
-}
-CYLSCAN_TARGET_AVX512 void fold16Avx512(FoldMode mode, const std::uint16_t* f, std::size_t n,
-                                        const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,
-                                        std::uint32_t* a) {
-  foldBody(mode, f, n, w, c, s, a);
-}
-CYLSCAN_TARGET_AVX512 void phaseAvx512(const std::uint32_t* c, const std::uint32_t* s,
-                                       std::size_t n, float k, BinaryAngle* phase,
-                                       std::uint16_t* mod) {
-  phaseBody(c, s, n, k, phase, mod);
-}
-CYLSCAN_TARGET_AVX512 std::size_t combineAvx512(const CombineParams& p, std::size_t n,
-                                                const std::uint32_t* c, const std::uint32_t* s,
-                                                const std::uint32_t* a, const BinaryAngle* phase,
-                                                const std::uint16_t* mod,
-                                                const CombineOutputs& out) {
-  return combineBody(p, n, c, s, a, phase, mod, out);
-}
-CYLSCAN_TARGET_AVX512 std::size_t combineAvx512(const CombineParams& p, std::size_t n,
-                                                const std::uint32_t* c, const std::uint32_t* s,
-                                                const std::uint32_t* a, const BinaryAngle* phase,
-                                                const std::uint16_t* mod,
-                                                const CompactOutputs& out) {
-  return combineBody(p, n, c, s, a, phase, mod, out);
-}
+CYLSCAN_KERNELS_FOR(Avx2, CYLSCAN_TARGET_AVX2)
+CYLSCAN_KERNELS_FOR(Avx512, CYLSCAN_TARGET_AVX512)
 
 bool useAvx512(KernelIsa isa) {
   return resolveKernelIsa(isa) == KernelIsa::kAvx512;
@@ -351,6 +331,8 @@ bool useNeon(KernelIsa isa) {
 }
 #endif
 
+#undef CYLSCAN_KERNELS_FOR
+
 }  // namespace
 
 void foldKernel(KernelIsa isa, FoldMode mode, const std::uint8_t* frame, std::size_t n,
@@ -381,6 +363,30 @@ void foldKernel(KernelIsa isa, FoldMode mode, const std::uint16_t* frame, std::s
   fold16Baseline(mode, frame, n, w, sum_c, sum_s, sum_a);
 }
 
+void foldPhaseKernel(KernelIsa isa, FoldMode mode, const std::uint8_t* frame, std::size_t n,
+                     const FoldWeights& w, float code_per_sum, std::uint32_t* sum_c,
+                     const std::uint32_t* sum_s, std::uint32_t* sum_a) {
+#if CYLSCAN_AVX2_VARIANT
+  if (useAvx512(isa)) return foldPhase8Avx512(mode, frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
+  if (useAvx2(isa)) return foldPhase8Avx2(mode, frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
+#endif
+  (void)isa;
+  foldPhase8Baseline(mode, frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
+}
+
+void foldPhaseKernel(KernelIsa isa, FoldMode mode, const std::uint16_t* frame, std::size_t n,
+                     const FoldWeights& w, float code_per_sum, std::uint32_t* sum_c,
+                     const std::uint32_t* sum_s, std::uint32_t* sum_a) {
+#if CYLSCAN_AVX2_VARIANT
+  if (useAvx512(isa)) {
+    return foldPhase16Avx512(mode, frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
+  }
+  if (useAvx2(isa)) return foldPhase16Avx2(mode, frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
+#endif
+  (void)isa;
+  foldPhase16Baseline(mode, frame, n, w, code_per_sum, sum_c, sum_s, sum_a);
+}
+
 void phaseKernel(KernelIsa isa, const std::uint32_t* sum_c, const std::uint32_t* sum_s,
                  std::size_t n, float code_per_sum, BinaryAngle* phase, std::uint16_t* modulation) {
 #if CYLSCAN_AVX2_VARIANT
@@ -394,34 +400,27 @@ void phaseKernel(KernelIsa isa, const std::uint32_t* sum_c, const std::uint32_t*
 namespace {
 template <typename Outputs>
 std::size_t dispatchCombine(KernelIsa isa, const CombineParams& p, std::size_t n,
-                            const std::uint32_t* sum_c, const std::uint32_t* sum_s,
-                            const std::uint32_t* sum_a, const BinaryAngle* first_phase,
-                            const std::uint16_t* first_modulation, const Outputs& out) {
+                            const std::uint32_t* sum_a, const PackedPhase* high,
+                            const PackedPhase* low, const Outputs& out) {
 #if CYLSCAN_AVX2_VARIANT
-  if (useAvx512(isa)) {
-    return combineAvx512(p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
-  }
-  if (useAvx2(isa)) {
-    return combineAvx2(p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
-  }
+  if (useAvx512(isa)) return combineAvx512(p, n, sum_a, high, low, out);
+  if (useAvx2(isa)) return combineAvx2(p, n, sum_a, high, low, out);
 #endif
   (void)isa;
-  return combineBaseline(p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
+  return combineBaseline(p, n, sum_a, high, low, out);
 }
 }  // namespace
 
 std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
-                          const std::uint32_t* sum_c, const std::uint32_t* sum_s,
-                          const std::uint32_t* sum_a, const BinaryAngle* first_phase,
-                          const std::uint16_t* first_modulation, const CombineOutputs& out) {
-  return dispatchCombine(isa, p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
+                          const std::uint32_t* sum_a, const PackedPhase* high,
+                          const PackedPhase* low, const CombineOutputs& out) {
+  return dispatchCombine(isa, p, n, sum_a, high, low, out);
 }
 
 std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
-                          const std::uint32_t* sum_c, const std::uint32_t* sum_s,
-                          const std::uint32_t* sum_a, const BinaryAngle* first_phase,
-                          const std::uint16_t* first_modulation, const CompactOutputs& out) {
-  return dispatchCombine(isa, p, n, sum_c, sum_s, sum_a, first_phase, first_modulation, out);
+                          const std::uint32_t* sum_a, const PackedPhase* high,
+                          const PackedPhase* low, const CompactOutputs& out) {
+  return dispatchCombine(isa, p, n, sum_a, high, low, out);
 }
 
 }  // namespace cylscan::algo

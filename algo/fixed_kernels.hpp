@@ -40,6 +40,27 @@ void foldKernel(KernelIsa isa, FoldMode mode, const std::uint16_t* frame, std::s
 void phaseKernel(KernelIsa isa, const std::uint32_t* sum_c, const std::uint32_t* sum_s,
                  std::size_t n, float code_per_sum, BinaryAngle* phase, std::uint16_t* modulation);
 
+// A complete set's phase and modulation code of one pixel in one word:
+// phase | code << 16.
+using PackedPhase = std::uint32_t;
+inline BinaryAngle packedAngle(PackedPhase p) {
+  return static_cast<BinaryAngle>(p & 0xFFFFu);
+}
+inline std::uint32_t packedCode(PackedPhase p) {
+  return p >> 16;
+}
+
+// The fold of the frame that completes a set: foldKernel's sums, then the
+// set's phase and code from them as phaseKernel computes them, written over
+// sum_c as PackedPhase (sum_s is left as it was). Folding the atan2 into the
+// last frame's pass saves a pass over the sums.
+void foldPhaseKernel(KernelIsa isa, FoldMode mode, const std::uint8_t* frame, std::size_t n,
+                     const FoldWeights& w, float code_per_sum, std::uint32_t* sum_c,
+                     const std::uint32_t* sum_s, std::uint32_t* sum_a);
+void foldPhaseKernel(KernelIsa isa, FoldMode mode, const std::uint16_t* frame, std::size_t n,
+                     const FoldWeights& w, float code_per_sum, std::uint32_t* sum_c,
+                     const std::uint32_t* sum_s, std::uint32_t* sum_a);
+
 // Everything finalize needs to turn both sets' phases into the output maps.
 struct CombineParams {
   FixedUnwrapParams unwrap;
@@ -49,9 +70,7 @@ struct CombineParams {
   float radians_per_unit = 0;        // 2π / 65536
   float counts_per_code = 0;         // modulation code → counts
   float counts_per_texture = 0;      // texture sum → counts (mean of both sets' A)
-  float second_code_per_sum = 0;     // modulation code per unit of the live sums
   float texture_code_per_sum = 0;    // texture sum → compact texture code
-  bool second_is_high = false;       // which set the live sums belong to
 };
 
 struct CombineOutputs {
@@ -73,17 +92,14 @@ struct CompactOutputs {
   std::uint16_t* texture;  // round(texture sum · texture_code_per_sum), clamped to [0, 65535]
 };
 
-// One fused pass: atan2 and modulation of the second set from the live sums,
-// unwrapping against the stored first set, flags, fusion, all output maps.
-// Returns the number of valid pixels.
+// One pass over both complete sets: unwrapping, flags, fusion, all output
+// maps. Returns the number of valid pixels.
 std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
-                          const std::uint32_t* sum_c, const std::uint32_t* sum_s,
-                          const std::uint32_t* sum_a, const BinaryAngle* first_phase,
-                          const std::uint16_t* first_modulation, const CombineOutputs& out);
+                          const std::uint32_t* sum_a, const PackedPhase* high,
+                          const PackedPhase* low, const CombineOutputs& out);
 // The same pass writing only the compact outputs (11 bytes per pixel).
 std::size_t combineKernel(KernelIsa isa, const CombineParams& p, std::size_t n,
-                          const std::uint32_t* sum_c, const std::uint32_t* sum_s,
-                          const std::uint32_t* sum_a, const BinaryAngle* first_phase,
-                          const std::uint16_t* first_modulation, const CompactOutputs& out);
+                          const std::uint32_t* sum_a, const PackedPhase* high,
+                          const PackedPhase* low, const CompactOutputs& out);
 
 }  // namespace cylscan::algo

@@ -2,14 +2,16 @@
 // The fixed-point pipeline: the device's path.
 //
 // Working state per pixel (16 bytes for a two-set scan):
-//   uint32 C, S   the live set's sums (reused by the second set)
+//   uint32 C, S   the live set's sums (reused by the second set); once a set
+//                 is complete, C holds its PackedPhase (binary phase and
+//                 modulation code), computed by the fold of its last frame
 //   uint32 A      the texture sum of both sets; its LSB is the saturation flag
-//   uint16 φ1     the first set's binary phase, once that set is complete
-//   uint16 B1     the first set's modulation code
+//   uint32 P1     the first set's PackedPhase (its C, kept when it completed)
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "algo/fixed_kernels.hpp"
@@ -67,8 +69,7 @@ class FixedPipeline final : public PhasePipeline {
         sum_c_(pixels_),
         sum_s_(pixels_),
         sum_a_(pixels_),
-        first_phase_(pixels_),
-        first_modulation_(pixels_) {
+        first_packed_(pixels_) {
     const int max_pixel = setup.maxPixel();
     const ShiftWeights* sets[] = {&setup.high, &setup.low};
     const std::int64_t a_scale = FixedSetWeights::sharedTextureScale(sets, max_pixel);
@@ -99,20 +100,25 @@ class FixedPipeline final : public PhasePipeline {
       return;
     }
     second_ = set;
-    // The first set is complete: keep its phase and modulation; the next fold
-    // overwrites its sums.
-    phaseKernel(isa_, sum_c_.data(), sum_s_.data(), pixels_, code_per_sum_[fringeSetIndex(*first_)],
-                first_phase_.data(), first_modulation_.data());
+    // The first set's phase was kept by its last fold; the next fold
+    // overwrites the sums.
     mode_ = FoldMode::kStartSet;
   }
 
-  void fold(FringeSet set, int k, const cv::Mat& frame) override {
+  void fold(FringeSet set, int k, const cv::Mat& frame, bool completes_set) override {
     const FixedSetWeights& w = weights_[fringeSetIndex(set)];
     FoldWeights fw = fold_limits_;
     fw.c = w.c[static_cast<std::size_t>(k)];
     fw.s = w.s[static_cast<std::size_t>(k)];
     fw.a = w.a[static_cast<std::size_t>(k)];
-    foldFixedFrame(isa_, mode_, frame, fw, sum_c_.data(), sum_s_.data(), sum_a_.data());
+    if (!completes_set) {
+      foldFixedFrame(isa_, mode_, frame, fw, sum_c_.data(), sum_s_.data(), sum_a_.data());
+    } else {
+      foldFixedFrameToPhase(isa_, mode_, frame, fw, code_per_sum_[fringeSetIndex(set)],
+                            sum_c_.data(), sum_s_.data(), sum_a_.data());
+      // The first set's phase is kept; its memory becomes the second set's C.
+      if (set == *first_) std::swap(sum_c_, first_packed_);
+    }
     mode_ = FoldMode::kAccumulate;
   }
 
@@ -125,13 +131,13 @@ class FixedPipeline final : public PhasePipeline {
         maps.texture.ptr<float>(),         maps.absolute.ptr<float>(),
         maps.fused.ptr<float>(),           maps.fringe_order.ptr<std::int16_t>(),
         maps.invalid.ptr<std::uint8_t>()};
-    std::size_t valid = combineKernel(isa_, p, pixels_, sum_c_.data(), sum_s_.data(), sum_a_.data(),
-                                      first_phase_.data(), first_modulation_.data(), out);
+    std::size_t valid =
+        combineKernel(isa_, p, pixels_, sum_a_.data(), highPacked(), lowPacked(), out);
     const auto absolute_of = [&](std::size_t j) {
-      return std::int64_t{out.fringe_order[j]} * kUnitsPerTurn + phasesAt(j, p).high;
+      return std::int64_t{out.fringe_order[j]} * kUnitsPerTurn + phasesAt(j).high;
     };
     const auto decide = [&](std::size_t i, std::int64_t mean) {
-      const PixelPhases ph = phasesAt(i, p);
+      const PixelPhases ph = phasesAt(i);
       const std::optional<DecidedOrder> order = decideOrder(p.unwrap, ph, mean);
       if (!order) return false;
       out.fringe_order[i] = static_cast<std::int16_t>(order->absolute_high / kUnitsPerTurn);
@@ -152,11 +158,11 @@ class FixedPipeline final : public PhasePipeline {
     const CombineParams p = scanParams(out.order_residual);
     const CompactOutputs compact{out.absolute.ptr<std::int32_t>(), out.fused.ptr<float>(),
                                  out.invalid.ptr<std::uint8_t>(), out.texture.ptr<std::uint16_t>()};
-    std::size_t valid = combineKernel(isa_, p, pixels_, sum_c_.data(), sum_s_.data(), sum_a_.data(),
-                                      first_phase_.data(), first_modulation_.data(), compact);
+    std::size_t valid =
+        combineKernel(isa_, p, pixels_, sum_a_.data(), highPacked(), lowPacked(), compact);
     const auto absolute_of = [&](std::size_t j) { return std::int64_t{compact.absolute[j]}; };
     const auto decide = [&](std::size_t i, std::int64_t mean) {
-      const PixelPhases ph = phasesAt(i, p);
+      const PixelPhases ph = phasesAt(i);
       const std::optional<DecidedOrder> order = decideOrder(p.unwrap, ph, mean);
       if (!order) return false;
       compact.absolute[i] = order->absolute_high;
@@ -178,7 +184,7 @@ class FixedPipeline final : public PhasePipeline {
   }
 
   std::size_t workingStateBytes() const override {
-    return pixels_ * (sizeof(std::uint32_t) * 3 + sizeof(BinaryAngle) + sizeof(std::uint16_t));
+    return pixels_ * (sizeof(std::uint32_t) * 3 + sizeof(PackedPhase));
   }
 
  private:
@@ -186,13 +192,11 @@ class FixedPipeline final : public PhasePipeline {
   // rule measured on a sample of its well-modulated, unsaturated pixels.
   CombineParams scanParams(OrderResidual& report) const {
     CombineParams p = combine_;
-    p.second_is_high = *second_ == FringeSet::High;
-    p.second_code_per_sum = code_per_sum_[fringeSetIndex(*second_)];
     std::vector<std::int32_t> residuals;
     const std::size_t stride = residualSampleStride(setup_.size);
     residuals.reserve(pixels_ / stride + 1);
     for (std::size_t i = 0; i < pixels_; i += stride) {
-      const PixelPhases ph = phasesAt(i, p);
+      const PixelPhases ph = phasesAt(i);
       if (ph.modulation_high < p.min_modulation || ph.modulation_low < p.min_modulation ||
           (sum_a_[i] & 1u) != 0)
         continue;
@@ -205,20 +209,19 @@ class FixedPipeline final : public PhasePipeline {
     return p;
   }
 
-  // One pixel's phases: the second set's from the live sums, computed as
-  // combineKernel computes them, the first set's as stored.
-  PixelPhases phasesAt(std::size_t i, const CombineParams& p) const {
-    const BinaryPolar second =
-        binaryPolar(static_cast<std::int32_t>(sum_s_[i]), static_cast<std::int32_t>(sum_c_[i]));
-    float code = second.magnitude * p.second_code_per_sum + 0.5f;  // as phaseKernel
-    code = code < 65535.0f ? code : 65535.0f;
-    const auto second_code = static_cast<std::uint32_t>(static_cast<std::int32_t>(code));
-    PixelPhases ph;
-    ph.high = p.second_is_high ? second.angle : first_phase_[i];
-    ph.low = p.second_is_high ? first_phase_[i] : second.angle;
-    ph.modulation_high = p.second_is_high ? second_code : first_modulation_[i];
-    ph.modulation_low = p.second_is_high ? first_modulation_[i] : second_code;
-    return ph;
+  // Both complete sets' PackedPhase maps: the first set's kept, the second's
+  // in place of its C.
+  const PackedPhase* highPacked() const {
+    return *second_ == FringeSet::High ? sum_c_.data() : first_packed_.data();
+  }
+  const PackedPhase* lowPacked() const {
+    return *second_ == FringeSet::High ? first_packed_.data() : sum_c_.data();
+  }
+
+  PixelPhases phasesAt(std::size_t i) const {
+    const PackedPhase high = highPacked()[i];
+    const PackedPhase low = lowPacked()[i];
+    return {packedAngle(high), packedAngle(low), packedCode(high), packedCode(low)};
   }
 
   const PipelineSetup& setup_;
@@ -230,29 +233,45 @@ class FixedPipeline final : public PhasePipeline {
   CombineParams combine_;
   double texture_codes_per_count_ = 0;
   std::vector<std::uint32_t> sum_c_, sum_s_, sum_a_;
-  std::vector<BinaryAngle> first_phase_;
-  std::vector<std::uint16_t> first_modulation_;
+  std::vector<PackedPhase> first_packed_;
   std::optional<FringeSet> first_, second_;
   FoldMode mode_ = FoldMode::kStartScan;
 };
 
 }  // namespace
 
-void foldFixedFrame(KernelIsa isa, FoldMode mode, const cv::Mat& frame, const FoldWeights& w,
-                    std::uint32_t* sum_c, std::uint32_t* sum_s, std::uint32_t* sum_a) {
+namespace {
+// Calls fold(pixels, count, offset) once for a continuous frame, else per row.
+template <typename Fold>
+void foldRows(const cv::Mat& frame, Fold fold) {
   const int rows = frame.isContinuous() ? 1 : frame.rows;
   const auto row_pixels =
       static_cast<std::size_t>(frame.isContinuous() ? frame.total() : frame.cols);
   for (int r = 0; r < rows; ++r) {
     const std::size_t offset = static_cast<std::size_t>(r) * row_pixels;
     if (frame.depth() == CV_8U) {
-      foldKernel(isa, mode, frame.ptr<std::uint8_t>(r), row_pixels, w, sum_c + offset,
-                 sum_s + offset, sum_a + offset);
+      fold(frame.ptr<std::uint8_t>(r), row_pixels, offset);
     } else {
-      foldKernel(isa, mode, frame.ptr<std::uint16_t>(r), row_pixels, w, sum_c + offset,
-                 sum_s + offset, sum_a + offset);
+      fold(frame.ptr<std::uint16_t>(r), row_pixels, offset);
     }
   }
+}
+}  // namespace
+
+void foldFixedFrame(KernelIsa isa, FoldMode mode, const cv::Mat& frame, const FoldWeights& w,
+                    std::uint32_t* sum_c, std::uint32_t* sum_s, std::uint32_t* sum_a) {
+  foldRows(frame, [&](const auto* pixels, std::size_t n, std::size_t offset) {
+    foldKernel(isa, mode, pixels, n, w, sum_c + offset, sum_s + offset, sum_a + offset);
+  });
+}
+
+void foldFixedFrameToPhase(KernelIsa isa, FoldMode mode, const cv::Mat& frame, const FoldWeights& w,
+                           float code_per_sum, std::uint32_t* sum_c, const std::uint32_t* sum_s,
+                           std::uint32_t* sum_a) {
+  foldRows(frame, [&](const auto* pixels, std::size_t n, std::size_t offset) {
+    foldPhaseKernel(isa, mode, pixels, n, w, code_per_sum, sum_c + offset, sum_s + offset,
+                    sum_a + offset);
+  });
 }
 
 std::unique_ptr<PhasePipeline> makeFixedPipeline(const PipelineSetup& setup) {

@@ -202,7 +202,8 @@ void PhaseEngine::fold(FringeSet set, int k, const cv::Mat& frame) {
     im.pipeline->beginSet(set);
     im.active = set;
   }
-  im.pipeline->fold(set, k, frame);
+  const bool completes_set = im.count[fringeSetIndex(set)] + 1 == n;
+  im.pipeline->fold(set, k, frame, completes_set);
   im.folded[fringeSetIndex(set)][static_cast<std::size_t>(k)] = true;
   ++im.count[fringeSetIndex(set)];
   if (im.complete(set)) im.active.reset();

@@ -30,6 +30,11 @@ std::uint32_t minModulationCode(const PhaseOptions& resolved);
 // One checked frame into the fixed path's sums: foldKernel over its rows.
 void foldFixedFrame(KernelIsa isa, FoldMode mode, const cv::Mat& frame, const FoldWeights& w,
                     std::uint32_t* sum_c, std::uint32_t* sum_s, std::uint32_t* sum_a);
+// The frame that completes a set: foldPhaseKernel over its rows (the set's
+// PackedPhase written over sum_c).
+void foldFixedFrameToPhase(KernelIsa isa, FoldMode mode, const cv::Mat& frame, const FoldWeights& w,
+                           float code_per_sum, std::uint32_t* sum_c, const std::uint32_t* sum_s,
+                           std::uint32_t* sum_a);
 
 // One checked frame into the reference path's sums (C, S, A += w·I, counts
 // clamped to full scale); saturated[p] is set where the pixel reaches the
@@ -63,8 +68,9 @@ class PhasePipeline {
   virtual ~PhasePipeline() = default;
   // Called once per set, before its first frame; the second call ends the first set.
   virtual void beginSet(FringeSet set) = 0;
-  // frame: the checked CV_8UC1 / CV_16UC1 of the setup's size.
-  virtual void fold(FringeSet set, int k, const cv::Mat& frame) = 0;
+  // frame: the checked CV_8UC1 / CV_16UC1 of the setup's size; completes_set:
+  // it is the set's last frame to be folded.
+  virtual void fold(FringeSet set, int k, const cv::Mat& frame, bool completes_set) = 0;
   // Both sets complete.
   virtual void finalize(PhaseMaps& maps) const = 0;
   // Both sets complete; throws std::logic_error where the path has no compact form.

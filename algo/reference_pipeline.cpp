@@ -30,7 +30,7 @@ class ReferencePipeline final : public PhasePipeline {
 
   void beginSet(FringeSet) override {}
 
-  void fold(FringeSet set, int k, const cv::Mat& frame) override {
+  void fold(FringeSet set, int k, const cv::Mat& frame, bool /*completes_set*/) override {
     const int i = fringeSetIndex(set);
     foldReferenceFrame(setup_.weights(set).frame(static_cast<std::size_t>(k)), frame,
                        setup_.options, sum_c_[i].data(), sum_s_[i].data(), sum_a_[i].data(),

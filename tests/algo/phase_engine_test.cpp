@@ -12,7 +12,9 @@
 #include <random>
 #include <set>
 #include <string>
+#include <vector>
 
+#include "algo/fixed_kernels.hpp"
 #include "algo/order_residual.hpp"
 #include "synthetic_fringes.hpp"
 
@@ -455,6 +457,60 @@ TEST(PhaseEngine, KernelVariantsResolveOnlyToWhatThisBuildAndCpuHave) {
   }
   if (!neonKernelsAvailable() && !avx2KernelsAvailable()) {
     EXPECT_EQ(automatic, KernelIsa::kBaseline);
+  }
+}
+
+// The fold of a set's last frame writes the phase and code that a plain fold
+// followed by the phase kernel gives, for both pixel depths, every fold mode
+// and every kernel build this machine runs (n odd, so vector tails are hit).
+template <typename Pixel>
+void expectFoldPhaseMatchesFoldThenPhase(KernelIsa isa, FoldMode mode, int max_pixel) {
+  constexpr std::size_t kPixels = 1031;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<std::int32_t> sum(-(1 << 27), 1 << 27);
+  std::uniform_int_distribution<int> pixel(0, max_pixel);
+  std::vector<std::uint32_t> c(kPixels), s(kPixels), a(kPixels);
+  std::vector<Pixel> frame(kPixels);
+  for (std::size_t i = 0; i < kPixels; ++i) {
+    c[i] = static_cast<std::uint32_t>(sum(rng));
+    s[i] = static_cast<std::uint32_t>(sum(rng));
+    a[i] = static_cast<std::uint32_t>(sum(rng)) & ~1u;
+    frame[i] = static_cast<Pixel>(pixel(rng));
+  }
+  c[0] = s[0] = 0;  // the angle of (0, 0) and a zero modulation
+  FoldWeights w;
+  w.c = -1733;
+  w.s = 911;
+  w.a = 64;
+  w.saturation = static_cast<std::uint32_t>(max_pixel);
+  w.max_pixel = static_cast<std::uint32_t>(max_pixel);
+  const float code_per_sum = 3.1e-3f;
+
+  std::vector<std::uint32_t> c1 = c, s1 = s, a1 = a;
+  foldKernel(isa, mode, frame.data(), kPixels, w, c1.data(), s1.data(), a1.data());
+  std::vector<BinaryAngle> phase(kPixels);
+  std::vector<std::uint16_t> code(kPixels);
+  phaseKernel(isa, c1.data(), s1.data(), kPixels, code_per_sum, phase.data(), code.data());
+
+  std::vector<std::uint32_t> c2 = c, a2 = a;
+  foldPhaseKernel(isa, mode, frame.data(), kPixels, w, code_per_sum, c2.data(), s.data(),
+                  a2.data());
+  int differing = 0;
+  for (std::size_t i = 0; i < kPixels; ++i) {
+    differing += packedAngle(c2[i]) != phase[i] || packedCode(c2[i]) != code[i] || a2[i] != a1[i];
+  }
+  EXPECT_EQ(differing, 0) << "isa " << static_cast<int>(isa) << ", mode " << static_cast<int>(mode)
+                          << ", " << sizeof(Pixel) * 8 << "-bit";
+}
+
+TEST(PhaseEngine, TheFoldThatCompletesASetWritesThePhaseKernelsBits) {
+  for (const KernelIsa isa :
+       {KernelIsa::kBaseline, KernelIsa::kNeon, KernelIsa::kAvx2, KernelIsa::kAvx512}) {
+    if (resolveKernelIsa(isa) != isa) continue;  // not in this build or on this CPU
+    for (const FoldMode mode : {FoldMode::kAccumulate, FoldMode::kStartSet, FoldMode::kStartScan}) {
+      expectFoldPhaseMatchesFoldThenPhase<std::uint8_t>(isa, mode, 255);
+      expectFoldPhaseMatchesFoldThenPhase<std::uint16_t>(isa, mode, 4095);
+    }
   }
 }
 

@@ -28,7 +28,8 @@ MIN_SHARE = 0.08
 KERNELS = {
     "aarch64": {
         "pattern": re.compile(r"\bv\d+\.(16b|8b|8h|4h|4s|2s|2d)\b|\bq\d+\b"),
-        "functions": ["foldKernel", "phaseKernel", "combineBaseline"],
+        "functions": ["fold8Baseline", "fold16Baseline", "foldPhase8Baseline",
+                      "foldPhase16Baseline", "phaseBaseline", "combineBaseline"],
     },
     "armv7l": {
         # 32-bit ARM: NEON works on q (and d) registers; VFP's scalar float
@@ -39,8 +40,9 @@ KERNELS = {
     },
     "x86_64": {
         "pattern": None,  # per variant, below
-        "functions": ["fold8Avx2", "fold16Avx2", "phaseAvx2", "combineAvx2",
-                      "fold8Avx512", "fold16Avx512", "phaseAvx512", "combineAvx512"],
+        "functions": ["fold8Avx2", "fold16Avx2", "foldPhase8Avx2", "foldPhase16Avx2",
+                      "phaseAvx2", "combineAvx2", "fold8Avx512", "fold16Avx512",
+                      "foldPhase8Avx512", "foldPhase16Avx512", "phaseAvx512", "combineAvx512"],
     },
 }
 X86_REGISTER = {"Avx2": re.compile(r"%ymm\d+"), "Avx512": re.compile(r"%zmm\d+")}
