@@ -29,25 +29,34 @@ constexpr std::uint8_t kOrderInconsistentBit = 4;
 
 // ---- fold ------------------------------------------------------------------
 
+// One pixel's sums after folding its value v: C and S start from zero with
+// each set, A with each scan; A's lowest bit flags saturation.
+struct FoldedSums {
+  std::uint32_t c, s, a;
+};
+
+template <FoldMode kMode, typename Pixel>
+CYLSCAN_INLINE_BODY FoldedSums foldPixel(const FoldWeights& w, Pixel pixel, std::uint32_t sum_c,
+                                         std::uint32_t sum_s, std::uint32_t sum_a) {
+  std::uint32_t v = pixel;
+  const std::uint32_t flag = v >= w.saturation ? 1u : 0u;
+  if constexpr (sizeof(Pixel) > 1) v = v < w.max_pixel ? v : w.max_pixel;
+  const std::uint32_t c = kMode == FoldMode::kAccumulate ? sum_c : 0u;
+  const std::uint32_t s = kMode == FoldMode::kAccumulate ? sum_s : 0u;
+  const std::uint32_t a = kMode == FoldMode::kStartScan ? 0u : sum_a;
+  return {c + static_cast<std::uint32_t>(w.c) * v, s + static_cast<std::uint32_t>(w.s) * v,
+          (a + static_cast<std::uint32_t>(w.a) * v) | flag};
+}
+
 template <FoldMode kMode, typename Pixel>
 CYLSCAN_INLINE_BODY void foldLoop(const Pixel* __restrict frame, std::size_t n, FoldWeights w,
                                   std::uint32_t* __restrict sum_c, std::uint32_t* __restrict sum_s,
                                   std::uint32_t* __restrict sum_a) {
-  const auto qc = static_cast<std::uint32_t>(w.c);
-  const auto qs = static_cast<std::uint32_t>(w.s);
-  const auto qa = static_cast<std::uint32_t>(w.a);
-  const std::uint32_t saturation = w.saturation;
-  const std::uint32_t max_pixel = w.max_pixel;
   for (std::size_t i = 0; i < n; ++i) {
-    std::uint32_t v = frame[i];
-    const std::uint32_t flag = v >= saturation ? 1u : 0u;
-    if constexpr (sizeof(Pixel) > 1) v = v < max_pixel ? v : max_pixel;
-    const std::uint32_t c = kMode == FoldMode::kAccumulate ? sum_c[i] : 0u;
-    const std::uint32_t s = kMode == FoldMode::kAccumulate ? sum_s[i] : 0u;
-    const std::uint32_t a = kMode == FoldMode::kStartScan ? 0u : sum_a[i];
-    sum_c[i] = c + qc * v;
-    sum_s[i] = s + qs * v;
-    sum_a[i] = (a + qa * v) | flag;
+    const FoldedSums f = foldPixel<kMode>(w, frame[i], sum_c[i], sum_s[i], sum_a[i]);
+    sum_c[i] = f.c;
+    sum_s[i] = f.s;
+    sum_a[i] = f.a;
   }
 }
 
@@ -101,21 +110,11 @@ CYLSCAN_INLINE_BODY void foldPhaseLoop(const Pixel* __restrict frame, std::size_
                                        float code_per_sum, std::uint32_t* __restrict sum_c,
                                        const std::uint32_t* __restrict sum_s,
                                        std::uint32_t* __restrict sum_a) {
-  const auto qc = static_cast<std::uint32_t>(w.c);
-  const auto qs = static_cast<std::uint32_t>(w.s);
-  const auto qa = static_cast<std::uint32_t>(w.a);
-  const std::uint32_t saturation = w.saturation;
-  const std::uint32_t max_pixel = w.max_pixel;
   for (std::size_t i = 0; i < n; ++i) {
-    std::uint32_t v = frame[i];
-    const std::uint32_t flag = v >= saturation ? 1u : 0u;
-    if constexpr (sizeof(Pixel) > 1) v = v < max_pixel ? v : max_pixel;
-    const std::uint32_t c = kMode == FoldMode::kAccumulate ? sum_c[i] : 0u;
-    const std::uint32_t s = kMode == FoldMode::kAccumulate ? sum_s[i] : 0u;
-    const std::uint32_t a = kMode == FoldMode::kStartScan ? 0u : sum_a[i];
-    const PhaseCode pc = phaseCode(c + qc * v, s + qs * v, code_per_sum);
+    const FoldedSums f = foldPixel<kMode>(w, frame[i], sum_c[i], sum_s[i], sum_a[i]);
+    const PhaseCode pc = phaseCode(f.c, f.s, code_per_sum);
     sum_c[i] = pc.phase | (pc.code << 16);
-    sum_a[i] = (a + qa * v) | flag;
+    sum_a[i] = f.a;
   }
 }
 
