@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: Apache-2.0
-// Phase as a binary angle and an integer atan2 that gives the same bits on every CPU.
+// Phase as a binary angle and an atan2 that gives the same bits on every IEEE-754 CPU.
 //
 // A BinaryAngle is a uint16 fraction of a turn (65536 = 2π), so wrapping is the
 // natural uint16 overflow and differences of phases need no branch.

@@ -5,9 +5,9 @@
 //
 // Frames are folded one at a time into a small per-pixel state; finalize() turns it
 // into phase maps. The default fixed-point path is the one the device runs: integer
-// sums, binary angles, an integer atan2 and integer unwrapping, the same bits on any
-// CPU, 16 bytes of working state per pixel. The double-precision reference path
-// (fixed_point = false) is for tests and comparisons.
+// sums, binary angles, an atan2 in fixed-order IEEE float operations and integer
+// unwrapping, the same bits on any IEEE-754 CPU, 16 bytes of working state per pixel. The
+// double-precision reference path (fixed_point = false) is for tests and comparisons.
 #pragma once
 
 #include <climits>
