@@ -255,7 +255,9 @@ CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t 
 // ---- the ISA variants --------------------------------------------------------
 
 // Every kernel of one ISA: the same bodies, compiled with the target's
-// attribute (empty for the baseline) and named with its suffix.
+// attribute and named with its suffix. TARGET is an attribute, which
+// parentheses would break.
+// NOLINTBEGIN(bugprone-macro-parentheses)
 #define CYLSCAN_KERNELS_FOR(SUFFIX, TARGET)                                                \
   TARGET void fold8##SUFFIX(FoldMode mode, const std::uint8_t* f, std::size_t n,           \
                             const FoldWeights& w, std::uint32_t* c, std::uint32_t* s,      \
@@ -291,6 +293,7 @@ CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t 
                                      const PackedPhase* low, const CompactOutputs& out) {  \
     return combineBody(p, n, a, high, low, out);                                           \
   }
+// NOLINTEND(bugprone-macro-parentheses)
 
 // Out of line, as the other ISAs' are, so that each kernel keeps its own
 // symbol: tests/algo/vectorised.py reads their instructions by name.
