@@ -113,7 +113,7 @@ CYLSCAN_INLINE_BODY void foldPhaseLoop(const Pixel* __restrict frame, std::size_
   for (std::size_t i = 0; i < n; ++i) {
     const FoldedSums f = foldPixel<kMode>(w, frame[i], sum_c[i], sum_s[i], sum_a[i]);
     const PhaseCode pc = phaseCode(f.c, f.s, code_per_sum);
-    sum_c[i] = pc.phase | (pc.code << 16);
+    sum_c[i] = packPhase(pc.phase, pc.code);
     sum_a[i] = f.a;
   }
 }
@@ -170,7 +170,7 @@ CYLSCAN_INLINE_BODY CombinedPixel combinePixel(const CombineParams& p, BinaryAng
 }
 
 // The output maps are restrict-qualified parameters, not a struct's members:
-// with the latter, GCC 12 left this loop scalar.
+// with the latter, GCC 12 left this loop scalar, so both combines take them so.
 CYLSCAN_INLINE_BODY std::size_t combineMaps(
     const CombineParams& p, std::size_t n, const std::uint32_t* __restrict sum_a,
     const PackedPhase* __restrict high, const PackedPhase* __restrict low,
@@ -216,18 +216,14 @@ CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t 
 
 // The compact outputs: the same arithmetic as above up to the conversion to
 // radians, which is left to the reader of the compact maps.
-CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t n,
-                                            const std::uint32_t* __restrict sum_a,
-                                            const PackedPhase* __restrict high,
-                                            const PackedPhase* __restrict low,
-                                            const CompactOutputs& out) {
+CYLSCAN_INLINE_BODY std::size_t combineCompact(
+    const CombineParams& p, std::size_t n, const std::uint32_t* __restrict sum_a,
+    const PackedPhase* __restrict high, const PackedPhase* __restrict low,
+    std::int32_t* __restrict absolute, float* __restrict fused, std::uint8_t* __restrict invalid,
+    std::uint16_t* __restrict texture) {
   const CombineParams params = p;  // a local copy: nothing the loop stores can alias it
   const float texture_code_per_sum = p.texture_code_per_sum;
   constexpr std::uint32_t kInvalidAbsolute = 0x80000000u;  // INT32_MIN
-  std::int32_t* __restrict absolute = out.absolute;
-  float* __restrict fused = out.fused;
-  std::uint8_t* __restrict invalid = out.invalid;
-  std::uint16_t* __restrict texture = out.texture;
   std::size_t valid = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const BinaryAngle h = packedAngle(high[i]);
@@ -250,6 +246,12 @@ CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t 
     valid += bad == 0 ? 1 : 0;
   }
   return valid;
+}
+
+CYLSCAN_INLINE_BODY std::size_t combineBody(const CombineParams& p, std::size_t n,
+                                            const std::uint32_t* sum_a, const PackedPhase* high,
+                                            const PackedPhase* low, const CompactOutputs& out) {
+  return combineCompact(p, n, sum_a, high, low, out.absolute, out.fused, out.invalid, out.texture);
 }
 
 // ---- the ISA variants --------------------------------------------------------

@@ -49,6 +49,9 @@ inline BinaryAngle packedAngle(PackedPhase p) {
 inline std::uint32_t packedCode(PackedPhase p) {
   return p >> 16;
 }
+inline PackedPhase packPhase(BinaryAngle angle, std::uint32_t code) {
+  return angle | (code << 16);
+}
 
 // The fold of the frame that completes a set: foldKernel's sums, then the
 // set's phase and code from them as phaseKernel computes them, written over
